@@ -1,0 +1,247 @@
+"""Candidate-function libraries Θ(q, q̇) as CasADi SX expressions with readable names.
+
+Each term is one sympy expression (what a person reads and what a saved model stores) and the SX
+expression built from it (what is differentiated and evaluated).  Derivatives are exact:
+Γ = ∇Θ · ẋ is a Jacobian-vector product, ∂Θ/∂q̇ and ∂²Θ/∂q̇² are CasADi Jacobians/Hessians, and every
+quantity is evaluated for all samples at once through ``casadi.Function.map``.
+"""
+from __future__ import annotations
+
+import itertools
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+import sympy as sp
+
+from .coords import Coordinates
+
+__all__ = ["Library"]
+
+
+def _key(expr: sp.Expr) -> str:
+    """Canonical identity of a term (expanded, so cos(a)*cos(b) and cos(b)*cos(a) agree)."""
+    return sp.srepr(sp.expand(expr))
+
+
+class Library:
+    """A list of candidate terms θ_j(q, q̇) over named generalized coordinates.
+
+    Parameters
+    ----------
+    coords : list of str or Coordinates
+        Generalized coordinate names, e.g. ``["x", "theta"]``; velocities are ``<q>_dot``.
+    terms : list of str or sympy.Expr
+        Candidate terms, e.g. ``["theta_dot**2", "cos(theta)"]``.  Duplicates are dropped.
+
+    Notes
+    -----
+    Libraries compose: ``lib1 + lib2`` is their union (same coordinates required).
+    """
+
+    def __init__(self, coords, terms):
+        self.coords = coords if isinstance(coords, Coordinates) else Coordinates(coords)
+        if isinstance(terms, (str, sp.Expr)):
+            terms = [terms]
+        exprs, seen = [], set()
+        for i, t in enumerate(terms):
+            e = self.coords.parse(t, what=f"library term #{i + 1}")
+            if e.is_number:
+                raise ValueError(f"library term {t!r} is a constant; energy is defined up to a "
+                                 "constant, so constants carry no information")
+            k = _key(e)
+            if k not in seen:
+                seen.add(k)
+                exprs.append(e)
+        if not exprs:
+            raise ValueError("a library needs at least one term")
+        self.exprs = exprs
+        self.names = [str(e) for e in exprs]
+        self._index = {_key(e): j for j, e in enumerate(exprs)}
+
+    # ------------------------------------------------------------------ builders
+    @classmethod
+    def polynomial(cls, coords, features, degree: int):
+        """All products of ``features`` of total degree 1..``degree`` (no constant term).
+
+        Parameters
+        ----------
+        coords : list of str
+            Generalized coordinate names.
+        features : list of str or str
+            Feature expressions, e.g. ``["cos(theta)", "sin(theta)", "theta_dot", "x", "x_dot"]``
+            (a comma-separated string is accepted).
+        degree : int
+            Highest total degree of a product (≥ 1).
+        """
+        if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
+            raise TypeError(f"degree must be an integer, got {type(degree).__name__}")
+        if degree < 1:
+            raise ValueError(f"degree must be at least 1, got {degree}")
+        c = coords if isinstance(coords, Coordinates) else Coordinates(coords)
+        if isinstance(features, str):
+            features = _split_top_level(features)
+        feats = [c.parse(f, what=f"feature {f!r}") for f in features]
+        if not feats:
+            raise ValueError("features must list at least one expression")
+        terms = []
+        for d in range(1, int(degree) + 1):
+            for combo in itertools.combinations_with_replacement(feats, d):
+                terms.append(sp.Mul(*combo))
+        lib = cls(c, terms)
+        lib.spec = {"kind": "polynomial", "features": [str(f) for f in feats], "degree": int(degree)}
+        return lib
+
+    def __add__(self, other: "Library") -> "Library":
+        if not isinstance(other, Library):
+            return NotImplemented
+        if other.coords.names != self.coords.names:
+            raise ValueError(f"cannot join libraries over different coordinates "
+                             f"{self.coords.names} and {other.coords.names}")
+        return Library(self.coords, self.exprs + other.exprs)
+
+    @property
+    def spec(self) -> dict:
+        """JSON-able description from which the library can be rebuilt."""
+        return getattr(self, "_spec", None) or {"kind": "terms", "terms": list(self.names)}
+
+    @spec.setter
+    def spec(self, value):
+        self._spec = value
+
+    def to_dict(self) -> dict:
+        return {"coords": list(self.coords.names), **self.spec}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Library":
+        if d.get("kind") == "polynomial":
+            return cls.polynomial(d["coords"], d["features"], d["degree"])
+        return cls(d["coords"], d["terms"])
+
+    # ------------------------------------------------------------------ lookup
+    def __len__(self) -> int:
+        return len(self.exprs)
+
+    def __repr__(self) -> str:
+        return f"Library({len(self)} terms over {self.coords.names})"
+
+    def index(self, term, what: str = "term") -> int:
+        """Position of ``term`` (string or sympy) in the library; ``ValueError`` if absent."""
+        e = self.coords.parse(term, what=what)
+        j = self._index.get(_key(e))
+        if j is None:
+            raise ValueError(f"{what} {str(term)!r} is not in the library ({len(self)} terms; "
+                             f"e.g. {', '.join(self.names[:4])}, ...)")
+        return j
+
+    def coefficients(self, expr, what: str = "expression") -> np.ndarray:
+        """Coefficient vector ξ (p,) with Θξ = ``expr``, after expanding products and trig sums.
+
+        ``ValueError`` if ``expr`` is not a linear combination of library terms (constants are
+        dropped: energy is defined up to one).
+        """
+        e = sp.expand(sp.expand_trig(self.coords.parse(expr, what=what)))
+        xi = np.zeros(len(self))
+        for term, c in e.as_coefficients_dict().items():
+            if term.is_number:
+                continue
+            xi[self.index(term, what=f"term of {what}")] += float(c)
+        return xi
+
+    # ------------------------------------------------------------------ symbolic
+    @cached_property
+    def sx(self) -> ca.SX:
+        """Θ as an SX row vector (1, p)."""
+        return ca.horzcat(*[self.coords.to_casadi(e) for e in self.exprs])
+
+    @cached_property
+    def velocity_degree(self) -> list:
+        """Per term: its degree of homogeneity in the velocities, or ``None`` if not homogeneous."""
+        out = []
+        for e in self.exprs:
+            try:
+                poly = sp.Poly(e, *self.coords.qd_sym)
+            except sp.PolynomialError:
+                out.append(None)
+                continue
+            degs = {sum(m) for m in poly.monoms()}
+            out.append(degs.pop() if len(degs) == 1 else None)
+        return out
+
+    # ------------------------------------------------------------------ numeric
+    @cached_property
+    def _functions(self) -> dict:
+        c = self.coords
+        x, xd = c.x, ca.SX.sym("xd", 2 * c.n)
+        theta = self.sx.T                                     # (p, 1)
+        jac_x = ca.jacobian(theta, x)                         # (p, 2n)
+        gamma = ca.mtimes(jac_x, xd)                          # exact ∇Θ·ẋ
+        dqd = ca.jacobian(theta, c.qd)                        # (p, n)
+        hess = [ca.jacobian(dqd[:, i], c.qd) for i in range(c.n)]   # n of (p, n)
+        opts = {"cse": True}
+        return {
+            "theta": ca.Function("theta", [x], [theta], opts),
+            "gamma": ca.Function("gamma", [x, xd], [gamma], opts),
+            "grad": ca.Function("grad", [x], [ca.vec(jac_x)], opts),
+            "dqd": ca.Function("dqd", [x], [ca.vec(dqd)], opts),
+            "hess": ca.Function("theta_hess", [x], [ca.vertcat(*[ca.vec(h) for h in hess])], opts),
+        }
+
+    def _eval(self, name: str, *arrays) -> np.ndarray:
+        f = self._functions[name]
+        n_samples = arrays[0].shape[0]
+        out = f.map(n_samples)(*[np.asarray(a, float).T for a in arrays])
+        return np.asarray(out).T                              # (N, out_size)
+
+    def _states(self, X) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if X.ndim != 2 or X.shape[1] != 2 * self.coords.n:
+            raise ValueError(f"states must have shape (n_samples, {2 * self.coords.n}) "
+                             f"= [q, q_dot] for coords {self.coords.names}, got {np.shape(X)}")
+        return X
+
+    def theta(self, X) -> np.ndarray:
+        """Θ(X): (n_samples, p) for states X (n_samples, 2n) = [q, q̇]."""
+        return self._eval("theta", self._states(X))
+
+    def gamma(self, X, Xdot) -> np.ndarray:
+        """Γ(X, Ẋ) = ∇Θ·ẋ = dΘ/dt along the data: (n_samples, p) (paper eq. 4)."""
+        X, Xdot = self._states(X), self._states(Xdot)
+        if X.shape != Xdot.shape:
+            raise ValueError(f"X and Xdot must have the same shape, got {X.shape} and {Xdot.shape}")
+        return self._eval("gamma", X, Xdot)
+
+    def grad(self, X) -> np.ndarray:
+        """∇_x Θ: (n_samples, 2n, p)."""
+        X = self._states(X)
+        p, m = len(self), 2 * self.coords.n
+        return self._eval("grad", X).reshape(len(X), m, p)
+
+    def dtheta_dqd(self, X) -> np.ndarray:
+        """∂Θ/∂q̇: (n_samples, n, p)."""
+        X = self._states(X)
+        return self._eval("dqd", X).reshape(len(X), self.coords.n, len(self))
+
+    def d2theta_dqd2(self, X) -> np.ndarray:
+        """∂²Θ/∂q̇²: (n_samples, n, n, p); entry [s, i, k, j] = ∂²θ_j/∂q̇_i∂q̇_k."""
+        X = self._states(X)
+        n, p = self.coords.n, len(self)
+        return self._eval("hess", X).reshape(len(X), n, n, p)
+
+
+def _split_top_level(text: str) -> list[str]:
+    """Split ``"cos(a),sin(a),b"`` at commas that are not inside parentheses."""
+    parts, depth, cur = [], 0, ""
+    for ch in text:
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+        if ch == "," and depth == 0:
+            parts.append(cur.strip())
+            cur = ""
+        else:
+            cur += ch
+    if cur.strip():
+        parts.append(cur.strip())
+    return parts

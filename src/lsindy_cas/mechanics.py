@@ -1,0 +1,122 @@
+"""Euler–Lagrange equations from a Lagrangian: mass matrix, forcing, CasADi ODE, sympy equations.
+
+For a time-independent L(q, q̇) with applied generalized forces Q,
+
+    d/dt ∂L/∂q̇ − ∂L/∂q = Q   ⇔   M(q, q̇) q̈ = F(q, q̇, Q),
+    M = ∂²L/∂q̇²,   F = Q + ∂L/∂q − (∂²L/∂q̇∂q) q̇.
+
+The accelerations are obtained by solving the linear system (``ca.solve``), never by inverting M
+symbolically.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import sympy as sp
+from scipy.integrate import solve_ivp
+
+from .coords import Coordinates
+
+__all__ = ["EulerLagrange", "simulate_ode"]
+
+
+class EulerLagrange:
+    """Equations of motion of a Lagrangian system.
+
+    Parameters
+    ----------
+    coords : Coordinates or list of str
+        Generalized coordinates.
+    lagrangian : str or sympy.Expr
+        L(q, q̇) over the coordinate names.
+    """
+
+    def __init__(self, coords, lagrangian):
+        self.coords = coords if isinstance(coords, Coordinates) else Coordinates(coords)
+        self.lagrangian = self.coords.parse(lagrangian, what="Lagrangian")
+        c = self.coords
+        L = c.to_casadi(self.lagrangian)
+        dL_dqd = ca.gradient(L, c.qd)
+        self.M_sx = ca.jacobian(dL_dqd, c.qd)
+        self.F_sx = c.Q + ca.gradient(L, c.q) - ca.mtimes(ca.jacobian(dL_dqd, c.q), c.qd)
+
+    def mass_matrix(self) -> ca.Function:
+        """``M(x)``: (2n,) state -> (n, n) generalized mass matrix ∂²L/∂q̇²."""
+        return ca.Function("M", [self.coords.x], [self.M_sx], ["x"], ["M"])
+
+    def ode(self) -> ca.Function:
+        """CasADi ``Function('ode', [x, u], [xdot], ['x', 'u'], ['xdot'])``.
+
+        ``x = [q, q̇]`` (2n), ``u = Q`` (n generalized forces), ``xdot = [q̇, q̈]`` with
+        ``q̈ = solve(M, F)``.
+        """
+        c = self.coords
+        qdd = ca.solve(self.M_sx, self.F_sx)
+        return ca.Function("ode", [c.x, c.Q], [ca.vertcat(c.qd, qdd)], ["x", "u"], ["xdot"])
+
+    def sympy_equations(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """Return ``(M, F)`` as sympy matrices so that ``M q̈ = F`` (with ``Q_<q>`` symbols)."""
+        c = self.coords
+        L = self.lagrangian
+        qd, q = sp.Matrix(c.qd_sym), sp.Matrix(c.q_sym)
+        p = sp.Matrix([sp.diff(L, v) for v in c.qd_sym])
+        M = p.jacobian(qd)
+        F = sp.Matrix(c.Q_sym) + sp.Matrix([sp.diff(L, v) for v in c.q_sym]) - p.jacobian(q) * qd
+        return M, F
+
+    def equations(self) -> list:
+        """Equations of motion as sympy ``Eq(M q̈, F)`` rows over ``<q>_ddot`` symbols."""
+        M, F = self.sympy_equations()
+        qdd = sp.Matrix([sp.Symbol(n + "_ddot", real=True) for n in self.coords.names])
+        lhs = M * qdd
+        return [sp.Eq(sp.expand(lhs[i]), sp.expand(F[i])) for i in range(self.coords.n)]
+
+
+def simulate_ode(ode: ca.Function, x0, t_eval, u=None, n_coords: int | None = None,
+                 rtol: float = 1e-11, atol: float = 1e-12):
+    """Integrate ``xdot = ode(x, u)`` accurately and return states and exact derivatives.
+
+    Parameters
+    ----------
+    ode : casadi.Function
+        ``(x (2n), u (n)) -> xdot (2n)``.
+    x0 : array (2n,)
+        Initial state ``[q, q̇]``.
+    t_eval : array (n_samples,)
+        Sample times (the first is the initial time).
+    u : None, float, array (n,) or callable
+        Generalized forces: constant, or ``u(t, x) -> (n,)`` held constant over each sampling interval
+        (zero-order hold, as a digital controller applies it).
+
+    Returns
+    -------
+    X, Xdot, U : arrays (n_samples, 2n), (n_samples, 2n), (n_samples, n)
+    """
+    t_eval = np.asarray(t_eval, float)
+    x0 = np.asarray(x0, float).ravel()
+    n = n_coords or x0.size // 2
+    if x0.size != 2 * n:
+        raise ValueError(f"x0 must have {2 * n} entries [q, q_dot], got {x0.size}")
+    f = lambda t, x, uu: np.asarray(ode(x, uu)).ravel()  # noqa: E731
+    X = np.empty((len(t_eval), 2 * n))
+    U = np.empty((len(t_eval), n))
+    X[0] = x0
+    if callable(u):
+        for i in range(len(t_eval)):
+            U[i] = np.broadcast_to(np.asarray(u(t_eval[i], X[i]), float), (n,))
+            if i + 1 < len(t_eval):
+                sol = solve_ivp(f, (t_eval[i], t_eval[i + 1]), X[i], method="DOP853", rtol=rtol,
+                                atol=atol, args=(U[i],))
+                if not sol.success:
+                    raise RuntimeError(f"integration failed at t = {t_eval[i]}: {sol.message}")
+                X[i + 1] = sol.y[:, -1]
+    else:
+        uu = np.broadcast_to(np.asarray(0.0 if u is None else u, float), (n,)).copy()
+        U[:] = uu
+        sol = solve_ivp(f, (t_eval[0], t_eval[-1]), x0, method="DOP853", t_eval=t_eval,
+                        rtol=rtol, atol=atol, args=(uu,))
+        if not sol.success:
+            raise RuntimeError(f"integration failed: {sol.message}")
+        X = sol.y.T
+    Xdot = np.asarray(ode.map(len(t_eval))(X.T, U.T)).T
+    return X, Xdot, U
