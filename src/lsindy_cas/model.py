@@ -101,7 +101,7 @@ class LagrangianSINDy:
             return derivative_form(self.library, trajectories, passive=passive)
         return integral_form(self.library, trajectories, window=self.window, passive=passive)
 
-    def fit(self, trajectories, scale_trajectories=None) -> "LagrangianSINDy":
+    def fit(self, trajectories, scale_trajectories=None, passive=None) -> "LagrangianSINDy":
         """Identify the energy, Lagrangian and equations of motion.
 
         Parameters
@@ -110,11 +110,14 @@ class LagrangianSINDy:
             Training runs.  If none of them is driven (power ≡ 0) the passive scheme is used.
         scale_trajectories : Trajectory or list, optional
             Passive scheme only: a short actuated record that fixes the energy's scale (eq. 8).
+        passive : bool, optional
+            Force (True) or forbid (False) the passive scheme; by default it is used when the
+            training data carry no power.
         """
         forced = self._validate()
         coords = self.library.coords.names
         trajectories = _check_trajectories(trajectories, coords)
-        bal = self._balance(trajectories)
+        bal = self._balance(trajectories, passive=passive)
         scale_system = None
         if bal.passive:
             if scale_trajectories is None:
