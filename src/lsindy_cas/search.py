@@ -131,7 +131,7 @@ def _gather(G: np.ndarray, S: np.ndarray) -> np.ndarray:
 
 
 def score_supports(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray,
-                   D: np.ndarray | None = None):
+                   D: np.ndarray | None = None, progress: Callable | None = None):
     """Scores (n_supports,) and degeneracy mask for every support, batched.
 
     Parameters
@@ -143,6 +143,8 @@ def score_supports(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray,
     supports : int array (n_supports, k)
     D : array (m', p), optional
         Matrix whose column dependence marks a support as degenerate (default ``A``).
+    progress : callable ``(n_done, n_total)``, optional
+        Called after each batch of supports (for progress bars).
     """
     if b is None and D is None:
         raise ValueError("the passive score needs the gradient matrix D to tell conserved "
@@ -157,11 +159,11 @@ def score_supports(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray,
     scores = np.empty(len(supports))
     degenerate = np.empty(len(supports), dtype=bool)
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        _score_chunks(G, GD if D is not None else None, c, bb, supports, scores, degenerate)
+        _score_chunks(G, GD if D is not None else None, c, bb, supports, scores, degenerate, progress)
     return scores, degenerate
 
 
-def _score_chunks(G, GD, c, bb, supports, scores, degenerate):
+def _score_chunks(G, GD, c, bb, supports, scores, degenerate, progress):
     for lo in range(0, len(supports), _CHUNK):
         S = supports[lo:lo + _CHUNK]
         GS = _gather(G, S)
@@ -177,12 +179,14 @@ def _score_chunks(G, GD, c, bb, supports, scores, degenerate):
             sc = 1.0 - np.einsum("bi,bi->b", y, y) / bb if bb > 0 else np.zeros(len(S))
         scores[lo:lo + _CHUNK] = np.maximum(sc, 0.0)
         degenerate[lo:lo + _CHUNK] = deg
+        if progress is not None:
+            progress(min(lo + _CHUNK, len(supports)), len(supports))
 
 
 def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                 admissible: Callable | None = None, D: np.ndarray | None = None,
                 scale_system: tuple | None = None, max_visits: int = 20_000,
-                n_report: int = 10) -> SearchResult:
+                n_report: int = 10, progress: Callable | None = None) -> SearchResult:
     """Best k-term support of ``A ξ ≈ b`` (or of a null vector of ``A`` when ``b`` is None).
 
     Parameters
@@ -204,6 +208,8 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         null space on the support has dimension > 1, the combination).
     max_visits : int
         How many of the best supports may be examined for admissibility before giving up.
+    progress : callable ``(n_done, n_total)``, optional
+        Progress callback for the scoring pass.
     """
     m, p = A.shape
     forced = sorted(set(int(j) for j in forced))
@@ -216,7 +222,7 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     supports = np.hstack([np.broadcast_to(np.array(forced, dtype=np.int64), (len(combos), len(forced))),
                           free[combos]])
     supports.sort(axis=1)
-    scores, degenerate = score_supports(A, b, supports, D)
+    scores, degenerate = score_supports(A, b, supports, D, progress)
     order = np.argsort(np.where(degenerate, np.inf, scores), kind="stable")
     n_ok = int((~degenerate).sum())
     candidates, winner = [], None
