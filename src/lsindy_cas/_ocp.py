@@ -67,8 +67,9 @@ class MultipleShootingNLP:
         Number of control intervals ``N``.
     dt : float
         Interval length in seconds (weights the stage cost).
-    state_cost, terminal_cost : casadi.Function
-        ``x -> scalar`` running cost (integrated as ``dt * l(x_k)``) and terminal cost.
+    stage_residual, terminal_residual : casadi.Function
+        ``x -> r``: running cost ``dt * |r(x_k)|^2`` per interval and terminal cost
+        ``|r_N(x_N)|^2``.
     input_weight : float
         Weight ``r`` of the input penalty ``r * dt * sum_i c_i (F_i / F_max)**2`` (POC) or
         ``r * dt * (u / F_max)**2`` (continuous).
@@ -82,9 +83,9 @@ class MultipleShootingNLP:
         Convergence tolerance.
     """
 
-    def __init__(self, step, n_state, n_input, input_index, levels, horizon, dt, state_cost,
-                 terminal_cost, input_weight, state_lb, state_ub, relaxation, solver,
-                 max_iter, tol):
+    def __init__(self, step, n_state, n_input, input_index, levels, horizon, dt,
+                 stage_residual, terminal_residual, input_weight, state_lb, state_ub,
+                 relaxation, solver, max_iter, tol):
         self.n_state, self.horizon, self.relaxation = n_state, horizon, relaxation
         self.levels = np.asarray(levels, dtype=float)
         n_c = self.levels.size if relaxation == "poc" else 1
@@ -110,8 +111,8 @@ class MultipleShootingNLP:
             g.append(-gap if solver == "sqp-hpipm" else gap)
             if relaxation == "poc":
                 g.append(ca.sum1(c) - 1)
-            f += dt * (state_cost(xs[k]) + input_weight * penalty)
-        f += terminal_cost(xs[horizon])
+            f += dt * (ca.sumsqr(stage_residual(xs[k])) + input_weight * penalty)
+        f += ca.sumsqr(terminal_residual(xs[horizon]))
         nlp = {"x": ca.vertcat(*z), "p": p, "f": f, "g": ca.vertcat(*g)}
         n_g = n_state + (1 if relaxation == "poc" else 0)
         self.n_var = horizon * (n_c + n_state)
@@ -179,5 +180,6 @@ class MultipleShootingNLP:
         ok = bool(st.get("success", False)) or st.get("return_status") in (
             "Solved_To_Acceptable_Level",)
         ok = ok and bool(np.all(np.isfinite(z)))
+        self.last_status = str(st.get("return_status", st.get("unified_return_status", "")))
         iters = int(st.get("iter_count", -1))
         return ok, z, np.asarray(res["lam_g"]).ravel(), np.asarray(res["lam_x"]).ravel(), iters

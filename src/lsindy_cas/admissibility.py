@@ -4,8 +4,10 @@ A fit can be perfect and still not be an energy.  With a constant input u on a c
 E' = u·x satisfies dE'/dt = u·ẋ = P exactly; with passive data any conserved quantity (e.g. an
 angular momentum) lies in the null space.  An admissible energy
 
-1. uses every prior term with a non-zero coefficient (prior knowledge says they are there), and
-2. has a positive-definite kinetic part: M(x) = ∂²E/∂q̇² ≻ 0 at every sample state.
+1. uses every prior term with a non-zero coefficient (prior knowledge says they are there),
+2. uses every term of its support (a k-term fit with a vanishing coefficient is a smaller model
+   plus round-off, e.g. E' = u·x + 1e-18·ẋ²), and
+3. has a positive-definite kinetic part: M(x) = ∂²E/∂q̇² ≻ 0 at every sample state.
 """
 from __future__ import annotations
 
@@ -52,6 +54,9 @@ class Admissibility:
         weak = [self.library.names[j] for j in self.forced if share[j] <= PRIOR_SHARE_TOL * top]
         if weak:
             return False, f"prior term(s) {', '.join(weak)} came out zero"
+        weak = [self.library.names[j] for j in support if share[j] <= PRIOR_SHARE_TOL * top]
+        if weak:
+            return False, f"term(s) {', '.join(weak)} came out zero (the fit is a smaller model)"
         M = np.einsum("sikp,p->sik", self.hess, coef)
         eig = np.linalg.eigvalsh(M)
         if not np.all(eig[:, 0] > PD_RTOL * np.maximum(np.abs(eig[:, -1]), 1e-300)):

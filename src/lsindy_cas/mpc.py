@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 
 from ._ocp import SOLVERS, MultipleShootingNLP, rk4_step
+from ._lookahead import build_lookahead
 from ._rounding import ROUNDINGS, weights_from_value
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
@@ -45,6 +46,8 @@ class MPCStats:
         Wall-clock seconds per controller call (solve + warm start + rounding + checks).
     iterations : list of int
         Solver iterations per solve.
+    statuses : dict
+        Count of each solver return status.
     """
 
     n_solves: int = 0
@@ -52,6 +55,7 @@ class MPCStats:
     solve_times: list = field(default_factory=list)
     step_times: list = field(default_factory=list)
     iterations: list = field(default_factory=list)
+    statuses: dict = field(default_factory=dict)
 
     def clear(self):
         """Reset all counters."""
@@ -107,9 +111,9 @@ class DiscreteInputMPC:
         Admissible values of ``u[input_index]`` (the other inputs are held at zero).
     input_index : int
         Which entry of ``u`` is actuated.
-    state_cost, terminal_cost : casadi.Function
-        ``x -> scalar``; the objective is ``sum_k dt * (state_cost(x_k) + input penalty) +
-        terminal_cost(x_N)``.
+    stage_residual, terminal_residual : casadi.Function
+        ``x -> r`` (least-squares costs); the objective is
+        ``sum_k dt * (|r(x_k)|^2 + input penalty) + |r_N(x_N)|^2``.
     dt : float
         Control period in seconds (zero-order hold).
     horizon : int
@@ -134,9 +138,10 @@ class DiscreteInputMPC:
         Solver tolerance.
     """
 
-    def __init__(self, ode, levels, *, input_index, state_cost, terminal_cost, dt, horizon,
-                 state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=2,
-                 solver="fatrop", relaxation="poc", rounding="sur", max_iter=60, tol=1e-4):
+    def __init__(self, ode, levels, *, input_index, stage_residual, terminal_residual, dt,
+                 horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
+                 solver="fatrop", relaxation="poc", rounding="lookahead", depth=4,
+                 max_iter=60, tol=1e-4):
         if not isinstance(ode, ca.Function):
             raise TypeError(f"ode must be a casadi.Function, got {type(ode).__name__}.")
         self.levels = _check_levels(levels)
@@ -147,8 +152,9 @@ class DiscreteInputMPC:
             raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}.")
         if relaxation not in ("poc", "continuous"):
             raise ValueError(f"relaxation must be 'poc' or 'continuous', got {relaxation!r}.")
-        if rounding not in ROUNDINGS:
-            raise ValueError(f"rounding must be one of {tuple(ROUNDINGS)}, got {rounding!r}.")
+        if rounding not in (*ROUNDINGS, "lookahead"):
+            raise ValueError(f"rounding must be one of {(*ROUNDINGS, 'lookahead')}, "
+                             f"got {rounding!r}.")
         self.n_state, self.n_input = ode.size1_in(0), ode.size1_in(1)
         if not 0 <= input_index < self.n_input:
             raise ValueError(f"input_index must be in [0, {self.n_input}), got {input_index}.")
@@ -159,10 +165,22 @@ class DiscreteInputMPC:
         self.step_function = rk4_step(ode, self.n_state, self.n_input, self.dt, n_substeps)
         self.nlp = MultipleShootingNLP(
             self.step_function, self.n_state, self.n_input, self.input_index, self.levels,
-            self.horizon, self.dt, state_cost, terminal_cost, float(input_weight), lb, ub,
-            relaxation, solver, int(max_iter), float(tol))
+            self.horizon, self.dt, stage_residual, terminal_residual, float(input_weight), lb,
+            ub, relaxation, solver, int(max_iter), float(tol))
         self.solver, self.relaxation, self.rounding = solver, relaxation, rounding
-        self._rounder = ROUNDINGS[rounding](self.levels.size)
+        self._lookahead = None
+        if rounding == "lookahead":
+            self.depth = _check_positive("depth", depth, integer=True)
+            if self.depth >= self.horizon:
+                raise ValueError(f"depth must be smaller than horizon ({self.horizon}), "
+                                 f"got {depth}.")
+            self._lookahead = build_lookahead(
+                self.step_function, self.n_state, self.n_input, self.input_index,
+                self.levels, self.horizon, self.depth, self.dt, stage_residual,
+                terminal_residual, float(input_weight), lb, ub)
+            self._rounder = ROUNDINGS["nearest"](self.levels.size)
+        else:
+            self._rounder = ROUNDINGS[rounding](self.levels.size)
         self._rollout = self.step_function.mapaccum(self.horizon)
         self.stats = MPCStats()
         self.reset()
@@ -207,6 +225,17 @@ class DiscreteInputMPC:
         z = self.nlp.pack(controls, states)
         return z, np.zeros(self.nlp.lbg.size), np.zeros(z.size)
 
+    def _choose_by_lookahead(self, x, controls, states):
+        """Level index starting the cheapest discrete sequence (see :mod:`._lookahead`)."""
+        forces = np.array([self._weights(c) @ self.levels for c in controls])
+        span = self.levels[-1] - self.levels[0]
+        free = ((forces > self.levels[0] + 1e-3 * span)
+                & (forces < self.levels[-1] - 1e-3 * span)).astype(float)
+        cost = np.asarray(self._lookahead(x, states.T, forces[None, :], free[None, :])).ravel()
+        if not np.all(np.isfinite(cost)):
+            return self._rounder(self._weights(controls[0]))
+        return int(np.argmin(cost)) // self.levels.size ** (self.depth - 1)
+
     def _check_state(self, x):
         try:
             x = np.asarray(x, dtype=float).ravel()
@@ -233,8 +262,11 @@ class DiscreteInputMPC:
         t0 = time.perf_counter()
         try:
             ok, z, lam_g, lam_x, iters = self.nlp.solve(x, z0, lam_g0, lam_x0)
+            status = self.nlp.last_status
         except RuntimeError:  # e.g. NaN in a function evaluation of a bad model
             ok, z, lam_g, lam_x, iters = False, z0, lam_g0, lam_x0, -1
+            status = "exception"
+        self.stats.statuses[status] = self.stats.statuses.get(status, 0) + 1
         self.stats.solve_times.append(time.perf_counter() - t0)
         self.stats.iterations.append(iters)
         self.stats.n_solves += 1
@@ -243,7 +275,10 @@ class DiscreteInputMPC:
             # fall back to the previous plan, already shifted into the warm start
             z, lam_g, lam_x = z0, lam_g0, lam_x0
         controls, states = self.nlp.unpack(z)
-        index = self._rounder(self._weights(controls[0]))
+        if self._lookahead is not None:
+            index = self._choose_by_lookahead(x, controls, states)
+        else:
+            index = self._rounder(self._weights(controls[0]))
         force = float(self.levels[index])
         self.plan_ = {"controls": controls, "states": states, "success": ok}
         zs, lgs = self.nlp.shift(z, lam_g)
@@ -356,17 +391,16 @@ class SwingUpMPC(DiscreteInputMPC):
         self.upright = float(upright)
         w = dict(self.default_weights, **(weights or {}))
         x = ca.SX.sym("x", 4)
-        ang = 1 - ca.cos(x[ip] - self.upright)
-        pos = (x[ic] / self.track_limit) ** 2
-        l = (w["angle"] * ang + w["position"] * pos + w["velocity"] * x[2 + ic] ** 2
-             + w["rate"] * x[2 + ip] ** 2)
-        lN = w["terminal"] * (w["angle"] * ang + w["position"] * pos
-                              + w["velocity"] * x[2 + ic] ** 2 + w["rate"] * x[2 + ip] ** 2)
+        # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
+        r = ca.vertcat(ca.sqrt(2 * w["angle"]) * ca.sin((x[ip] - self.upright) / 2),
+                       ca.sqrt(w["position"]) * x[ic] / self.track_limit,
+                       ca.sqrt(w["velocity"]) * x[2 + ic], ca.sqrt(w["rate"]) * x[2 + ip])
         lb = np.full(4, -np.inf)
         ub = np.full(4, np.inf)
         lb[ic], ub[ic] = -self.track_limit, self.track_limit
         super().__init__(ode, force_set, input_index=ic,
-                         state_cost=ca.Function("l", [x], [l]),
-                         terminal_cost=ca.Function("lN", [x], [lN]), dt=dt, horizon=horizon,
-                         state_lb=lb, state_ub=ub, input_weight=w["input"], **options)
+                         stage_residual=ca.Function("r", [x], [r]),
+                         terminal_residual=ca.Function("rN", [x], [ca.sqrt(w["terminal"]) * r]),
+                         dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
+                         input_weight=w["input"], **options)
         self.cart_index, self.pole_index = ic, ip

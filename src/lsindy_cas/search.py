@@ -23,7 +23,9 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["combinations", "SearchResult", "best_subset", "DEGENERACY_TOL"]
+from .subset_tree import tree_scores
+
+__all__ = ["combinations", "SearchResult", "best_subset", "score_all", "score_supports", "DEGENERACY_TOL"]
 
 # Pivots of a unit-diagonal Gram matrix are 1 − R² of each column against the previous ones.
 # Exact identities give ~1e-15 (round-off); genuinely distinct smooth terms on 100+ samples give
@@ -114,6 +116,10 @@ class SearchResult:
         How many supports were scored; ``n_degenerate`` of them were linearly dependent.
     null_dim : int
         Passive scheme: dimension of the (near) null space on the chosen support.
+    scores, supports : arrays (n_supports,), (n_supports, k)
+        Every scored support and its score.
+    n_reducible : int
+        Better-scoring supports skipped because a coefficient vanished (smaller model in disguise).
     """
 
     support: tuple
@@ -124,6 +130,8 @@ class SearchResult:
     n_degenerate: int
     null_dim: int = 0
     scores: np.ndarray | None = field(default=None, repr=False)
+    supports: np.ndarray | None = field(default=None, repr=False)
+    n_reducible: int = 0
 
 
 def _gather(G: np.ndarray, S: np.ndarray) -> np.ndarray:
@@ -217,42 +225,109 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         raise ValueError(f"n_terms must be between 1 and the library size {p}, got {k}")
     if len(forced) > k:
         raise ValueError(f"{len(forced)} prior terms do not fit in n_terms = {k}")
+    supports, scores, degenerate = score_all(A, b, k, forced, D, progress)
+    keys = np.where(degenerate, np.inf, scores)
+    n_ok = int((~degenerate).sum())
+    order = _best_first(keys, min(n_ok, 2048))
+    G, c = _normal_equations(A, b)
+    candidates, winner, n_visited, n_reducible, pos = [], None, 0, 0, 0
+    while pos < n_ok and n_visited < max_visits and winner is None:
+        if pos + 256 > len(order) and len(order) < n_ok:
+            order = _best_first(keys, min(n_ok, 4 * len(order)))
+        block = order[pos:pos + 256]
+        reducible = _reducible(G, c, supports[block])
+        for idx, red in zip(block, reducible):
+            pos += 1
+            S = tuple(supports[idx].tolist())
+            if red:   # cheap batched rejection: a k-term fit whose own coefficients say "fewer terms"
+                n_reducible += 1
+                if n_reducible <= n_report:
+                    candidates.append(Candidate(S, float(scores[idx]), False, REDUCIBLE_REASON))
+                continue
+            n_visited += 1
+            coef, null_dim = _coefficients(A, b, S, scale_system)
+            cand = Candidate(S, float(scores[idx]), coef=coef)
+            if coef is None:
+                cand.admissible, cand.reason = False, "scale trial cannot fix the scale"
+            elif admissible is None:
+                cand.admissible = True
+            else:
+                cand.admissible, cand.reason = admissible(S, coef)
+            candidates.append(cand)
+            if cand.admissible:
+                winner = (cand, null_dim)
+                break
+    # a few runners-up for the diagnostics
+    if pos + n_report > len(order):
+        order = _best_first(keys, min(n_ok, pos + n_report))
+    for idx in order[pos:pos + n_report]:
+        candidates.append(Candidate(tuple(int(j) for j in supports[idx]), float(scores[idx])))
+    if winner is None:
+        raise ValueError(f"no physically admissible {k}-term model among the {pos} best supports; "
+                         "try another n_terms, prior or library (reasons: "
+                         + "; ".join(sorted({c.reason for c in candidates if c.reason})) + ")")
+    cand, null_dim = winner
+    return SearchResult(cand.support, cand.coef, cand.score, candidates, len(supports),
+                        int(degenerate.sum()), null_dim, scores, supports, n_reducible)
+
+
+REDUCIBLE_REASON = "a coefficient came out zero: the support is really a smaller one"
+# A support is reducible when its smallest normalised coefficient is below this fraction of the
+# largest: exact traps put ~1e-12 there, genuine terms ≥ 1e-3 even when small.
+REDUCIBLE_TOL = 1e-6
+
+
+def _normal_equations(A, b):
+    An, _ = _normalise(A)
+    return An.T @ An, (None if b is None else An.T @ b)
+
+
+def _reducible(G, c, S) -> np.ndarray:
+    """Batched: does the fitted (or null) vector of each support have a vanishing entry?"""
+    GS = _gather(G, S)
+    if c is None:
+        v = np.linalg.eigh(GS)[1][:, :, 0]
+    else:
+        v = np.linalg.solve(GS, c[S][:, :, None])[:, :, 0]
+    a = np.abs(v)
+    return a.min(axis=1) <= REDUCIBLE_TOL * a.max(axis=1)
+
+
+def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndarray | None = None,
+              progress: Callable | None = None):
+    """Enumerate and score every k-support containing ``forced``.
+
+    Driven data use the prefix-sharing Cholesky tree (:mod:`lsindy_cas.subset_tree`); passive data
+    the batched smallest eigenvalue (:func:`score_supports`).
+
+    Returns
+    -------
+    supports : int array (n, k); scores : array (n,); degenerate : bool array (n,)
+    """
+    p = A.shape[1]
+    forced = sorted(set(int(j) for j in forced))
     free = np.array([j for j in range(p) if j not in set(forced)], dtype=np.int64)
+    if b is not None:
+        An, _ = _normalise(A)
+        supports, scores, pivots = tree_scores(An.T @ An, An.T @ b, float(b @ b), forced, free, k,
+                                               progress)
+        return supports, scores, pivots < DEGENERACY_TOL
     combos = combinations(len(free), k - len(forced))
     supports = np.hstack([np.broadcast_to(np.array(forced, dtype=np.int64), (len(combos), len(forced))),
                           free[combos]])
     supports.sort(axis=1)
     scores, degenerate = score_supports(A, b, supports, D, progress)
-    order = np.argsort(np.where(degenerate, np.inf, scores), kind="stable")
-    n_ok = int((~degenerate).sum())
-    candidates, winner = [], None
-    for idx in order[:min(max_visits, n_ok)]:
-        S = tuple(int(j) for j in supports[idx])
-        coef, null_dim = _coefficients(A, b, S, scale_system)
-        cand = Candidate(S, float(scores[idx]), coef=coef)
-        if coef is None:
-            cand.admissible, cand.reason = False, "scale trial cannot fix the scale"
-        elif admissible is None:
-            cand.admissible = True
-        else:
-            cand.admissible, cand.reason = admissible(S, coef)
-        candidates.append(cand)
-        if cand.admissible:
-            winner = (cand, null_dim)
-            break
-    # a few runners-up for the diagnostics
-    for idx in order[len(candidates):len(candidates) + n_report]:
-        if degenerate[idx]:
-            break
-        candidates.append(Candidate(tuple(int(j) for j in supports[idx]), float(scores[idx])))
-    if winner is None:
-        raise ValueError(f"no physically admissible {k}-term model among the "
-                         f"{min(max_visits, n_ok)} best supports; try another n_terms, prior or "
-                         "library (reasons: " + "; ".join(sorted({c.reason for c in candidates
-                                                                  if c.reason})) + ")")
-    cand, null_dim = winner
-    return SearchResult(cand.support, cand.coef, cand.score, candidates, len(supports),
-                        int(degenerate.sum()), null_dim, scores)
+    return supports, scores, degenerate
+
+
+def _best_first(keys: np.ndarray, n: int) -> np.ndarray:
+    """Indices of the ``n`` smallest keys in ascending order (ties by index), without a full sort."""
+    n = min(n, len(keys))
+    if n < len(keys) // 4:
+        top = np.argpartition(keys, n)[:n + 1] if n < len(keys) else np.arange(len(keys))
+        top = top[np.lexsort((top, keys[top]))]
+        return top[:n]
+    return np.argsort(keys, kind="stable")[:n]
 
 
 def _coefficients(A, b, S, scale_system):
