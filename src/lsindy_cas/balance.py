@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from .data import Trajectory
 from .library import Library
@@ -70,6 +69,8 @@ def derivative_form(library: Library, trajectories, passive: bool | None = None)
 
 def cumulative_work(tr: Trajectory) -> np.ndarray:
     """W(t_i) = ∫_{t_0}^{t_i} P dt (n_samples,), by integrating a cubic spline of P (4th order)."""
+    from scipy.interpolate import CubicSpline   # lazy: scipy's import costs ~0.5 s per CLI call
+
     P = tr.power
     if not np.any(P):
         return np.zeros_like(P)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import sympy as sp
-from scipy.integrate import solve_ivp
 
 from .coords import Coordinates
 
@@ -92,6 +91,8 @@ def simulate_ode(ode: ca.Function, x0, t_eval, u=None, n_coords: int | None = No
     -------
     X, Xdot, U : arrays (n_samples, 2n), (n_samples, 2n), (n_samples, n)
     """
+    from scipy.integrate import solve_ivp   # imported here: scipy.integrate costs ~0.5 s to import
+
     t_eval = np.asarray(t_eval, float)
     x0 = np.asarray(x0, float).ravel()
     n = n_coords or x0.size // 2
