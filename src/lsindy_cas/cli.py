@@ -110,6 +110,9 @@ def main(argv=None) -> int:
         msg = " ".join(str(exc).split())
         print(f"lsindy {args.command}: error: {msg}", file=sys.stderr)
         return 2
+    except BrokenPipeError:       # output piped into e.g. `head`: stop quietly
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         print(f"lsindy {args.command}: interrupted", file=sys.stderr)
         return 130

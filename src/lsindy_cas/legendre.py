@@ -40,7 +40,7 @@ def legendre(library: Library, coef_h: np.ndarray, X: np.ndarray | None = None,
     if coef_h.shape != (len(library),):
         raise ValueError(f"coef_h must have shape ({len(library)},), got {coef_h.shape}")
     active = np.flatnonzero(coef_h)
-    degrees = library.velocity_degree
+    degrees = {j: library.velocity_degree(j) for j in active}
     scale = np.max(np.abs(coef_h)) if active.size else 1.0
     linear = [library.names[j] for j in active if degrees[j] == 1 and abs(coef_h[j]) > rtol * scale]
     if linear:

@@ -19,9 +19,9 @@ from .coords import Coordinates
 __all__ = ["Library"]
 
 
-def _key(expr: sp.Expr) -> str:
-    """Canonical identity of a term (expanded, so cos(a)*cos(b) and cos(b)*cos(a) agree)."""
-    return sp.srepr(sp.expand(expr))
+def _expanded(expr: sp.Expr) -> sp.Expr:
+    """Expanded form, so that e.g. x*(x + y) and x**2 + x*y are recognised as one term."""
+    return sp.expand(expr)
 
 
 class Library:
@@ -43,21 +43,20 @@ class Library:
         self.coords = coords if isinstance(coords, Coordinates) else Coordinates(coords)
         if isinstance(terms, (str, sp.Expr)):
             terms = [terms]
-        exprs, seen = [], set()
+        exprs, index = [], {}
         for i, t in enumerate(terms):
             e = self.coords.parse(t, what=f"library term #{i + 1}")
             if e.is_number:
                 raise ValueError(f"library term {t!r} is a constant; energy is defined up to a "
                                  "constant, so constants carry no information")
-            k = _key(e)
-            if k not in seen:
-                seen.add(k)
+            if e not in index:          # sympy's canonical form: cos(a)*cos(b) == cos(b)*cos(a)
+                index[e] = len(exprs)
                 exprs.append(e)
         if not exprs:
             raise ValueError("a library needs at least one term")
         self.exprs = exprs
         self.names = [str(e) for e in exprs]
-        self._index = {_key(e): j for j, e in enumerate(exprs)}
+        self._index = index
 
     # ------------------------------------------------------------------ builders
     @classmethod
@@ -128,7 +127,9 @@ class Library:
     def index(self, term, what: str = "term") -> int:
         """Position of ``term`` (string or sympy) in the library; ``ValueError`` if absent."""
         e = self.coords.parse(term, what=what)
-        j = self._index.get(_key(e))
+        j = self._index.get(e)
+        if j is None:
+            j = self._expanded_index.get(_expanded(e))
         if j is None:
             raise ValueError(f"{what} {str(term)!r} is not in the library ({len(self)} terms; "
                              f"e.g. {', '.join(self.names[:4])}, ...)")
@@ -148,25 +149,28 @@ class Library:
             xi[self.index(term, what=f"term of {what}")] += float(c)
         return xi
 
+    @cached_property
+    def _expanded_index(self) -> dict:
+        return {_expanded(e): j for j, e in enumerate(self.exprs)}
+
     # ------------------------------------------------------------------ symbolic
     @cached_property
     def sx(self) -> ca.SX:
         """Θ as an SX row vector (1, p)."""
         return ca.horzcat(*[self.coords.to_casadi(e) for e in self.exprs])
 
-    @cached_property
-    def velocity_degree(self) -> list:
-        """Per term: its degree of homogeneity in the velocities, or ``None`` if not homogeneous."""
-        out = []
-        for e in self.exprs:
+    def velocity_degree(self, j: int) -> int | None:
+        """Degree of homogeneity of term ``j`` in the velocities, or ``None`` if not homogeneous."""
+        cache = self.__dict__.setdefault("_vdeg", {})
+        if j not in cache:
             try:
-                poly = sp.Poly(e, *self.coords.qd_sym)
+                poly = sp.Poly(self.exprs[j], *self.coords.qd_sym)
             except sp.PolynomialError:
-                out.append(None)
-                continue
-            degs = {sum(m) for m in poly.monoms()}
-            out.append(degs.pop() if len(degs) == 1 else None)
-        return out
+                cache[j] = None
+            else:
+                degs = {sum(m) for m in poly.monoms()}
+                cache[j] = degs.pop() if len(degs) == 1 else None
+        return cache[j]
 
     # ------------------------------------------------------------------ numeric
     @cached_property
