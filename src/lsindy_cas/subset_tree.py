@@ -63,6 +63,22 @@ def _append(G, c, nodes: _Nodes, parent, cols, keep_rows: bool):
     return R, y, e, pmin
 
 
+def _leaves(G, c, nodes: _Nodes, free, last):
+    """All one-column extensions of ``nodes`` by a free column after each node's last one.
+
+    Returns (parent index, column position in ``free``, explained ‖y‖², smallest pivot), in
+    lexicographic order.
+    """
+    Rf = nodes.R[:, :, free]                                  # (B, j, nf)
+    piv = np.diag(G)[free][None, :] - np.einsum("bjf,bjf->bf", Rf, Rf)
+    num = c[free][None, :] - np.einsum("bjf,bj->bf", Rf, nodes.y)
+    e = nodes.e[:, None] + num ** 2 / np.maximum(piv, 1e-300)
+    pmin = np.minimum(nodes.pmin[:, None], piv)
+    mask = np.arange(len(free))[None, :] > last[:, None]
+    parent, col = np.nonzero(mask)
+    return parent, col, e[mask], pmin[mask]
+
+
 def tree_scores(G: np.ndarray, c: np.ndarray, bb: float, forced, free, k: int,
                 progress: Callable | None = None):
     """Score all supports = ``forced`` ∪ (k − |forced|)-subsets of ``free``.
@@ -110,6 +126,14 @@ def tree_scores(G: np.ndarray, c: np.ndarray, bb: float, forced, free, k: int,
             return
         remaining = r - level - 1
         last = nodes.pos[:, -1] if nodes.pos.shape[1] else np.full(len(nodes.e), -1)
+        if remaining == 0:          # leaves: dense over (parent, column), then keep column > last
+            step = max(1, _BUDGET // (len(free) * (nodes.R.shape[1] + 1)))
+            for lo in range(0, len(last), step):
+                sub = nodes.take(slice(lo, lo + step))
+                parent, col, e, pmin = _leaves(G, c, sub, free, last[lo:lo + step])
+                walk(_Nodes(np.hstack([sub.pos[parent], col[:, None]]), None, None, e, pmin),
+                     level + 1)
+            return
         counts = np.maximum(len(free) - remaining - (last + 1), 0)
         row_cost = (nodes.R.shape[1] + 1) * (p if remaining else 4)
         per_batch = max(1, _BUDGET // row_cost)
