@@ -1,0 +1,214 @@
+"""What a person reads: H, L and the equations of motion, rounded, trig-simplified, pretty or LaTeX.
+
+An identified model is a sum of library terms, so a Lagrangian that physics writes as
+``θ̇1 θ̇2 cos(θ1 − θ2)`` comes out as ``θ̇1 θ̇2 cos θ1 cos θ2 + θ̇1 θ̇2 sin θ1 sin θ2``.  Here the
+coefficients are first rounded to the chosen number of significant digits (so terms whose
+coefficients agree at that precision can combine), then sympy's ``trigsimp`` folds the products back
+into sums and differences of angles; the simplified form is kept only if it is not longer.
+
+Symbols print as a physicist writes them: ``theta1_dot`` → θ̇₁ (``\\dot{\\theta}_{1}``),
+``x_ddot`` → ẍ, ``Q_theta1`` → Q_θ₁.
+
+>>> from lsindy_cas import printing
+>>> printing.plain("1.0*a_dot*b_dot*cos(a)*cos(b) + 1.0*a_dot*b_dot*sin(a)*sin(b)")
+'a_dot*b_dot*cos(a - b)'
+"""
+from __future__ import annotations
+
+import sympy as sp
+from sympy.printing.conventions import split_super_sub
+
+__all__ = ["simplify", "plain", "pretty", "latex", "describe", "symbol_latex"]
+
+DIGITS = 4
+
+
+def _check_digits(digits) -> int:
+    if isinstance(digits, bool) or not isinstance(digits, int) or not 1 <= digits <= 15:
+        raise ValueError(f"digits must be an integer between 1 and 15, got {digits!r}")
+    return digits
+
+
+def _sympify(expr) -> sp.Basic:
+    if isinstance(expr, sp.Basic):
+        return expr
+    if isinstance(expr, str):
+        try:
+            return sp.sympify(expr)
+        except (sp.SympifyError, SyntaxError, TypeError) as exc:
+            raise ValueError(f"cannot parse expression {expr!r}: {exc}") from None
+    raise TypeError(f"expected a sympy expression or a string, got {type(expr).__name__}")
+
+
+def _round(expr, digits: int):
+    """Floats rounded to ``digits`` significant digits, as exact rationals (so identities are exact)."""
+    floats = {f: sp.Rational(format(float(f), f".{digits - 1}e")) for f in expr.atoms(sp.Float)}
+    return expr.xreplace(floats)
+
+
+def _to_floats(expr, digits: int):
+    """Non-integer rationals back to (double-precision) decimals; printers drop the zeros."""
+    rats = {r: sp.Float(r, 15) for r in expr.atoms(sp.Rational) if not r.is_Integer}
+    return expr.xreplace(rats)
+
+
+def _trigsimp(expr):
+    try:
+        simpler = sp.trigsimp(expr)
+    except (RecursionError, NotImplementedError, TypeError):   # trigsimp's heuristics can fail
+        return expr
+    return simpler if sp.count_ops(simpler) <= sp.count_ops(expr) else expr
+
+
+def simplify(expr, digits: int = DIGITS):
+    """Round coefficients to ``digits`` significant digits and fold trig products.
+
+    Parameters
+    ----------
+    expr : sympy expression, ``Eq`` or str
+    digits : int
+        Significant digits of the coefficients (1–15).
+
+    Returns
+    -------
+    sympy expression (or ``Eq``)
+        E.g. ``0.5000*theta2_dot**2 + theta1_dot*theta2_dot*cos(theta1 - theta2)``.
+    """
+    digits = _check_digits(digits)
+    expr = _sympify(expr)
+    if isinstance(expr, sp.Equality):
+        return sp.Eq(simplify(expr.lhs, digits), simplify(expr.rhs, digits), evaluate=False)
+    exact = _round(sp.expand(expr), digits)
+    return _to_floats(_trigsimp(exact), digits)
+
+
+# ---------------------------------------------------------------------- display symbols
+def _dotted(name: str, dots: str):
+    base, sups, subs = split_super_sub(name)
+    out = base + dots
+    if sups:
+        out += "__" + "__".join(sups)
+    if subs:
+        out += "_" + "_".join(subs)
+    return out
+
+
+def symbol_latex(coord: str, dots: int = 0) -> str:
+    r"""LaTeX of a coordinate or its derivative: ``("theta1", 2)`` -> ``\ddot{\theta}_{1}``."""
+    if dots not in (0, 1, 2):
+        raise ValueError(f"dots must be 0, 1 or 2, got {dots!r}")
+    name = coord if dots == 0 else _dotted(coord, "d" * (dots - 1) + "dot")
+    return sp.latex(sp.Symbol(name))
+
+
+def _classify(name: str, coords):
+    """(role, coordinate) for a symbol name: role in {"q", "dot", "ddot", "Q", None}."""
+    if coords is not None:
+        for c in coords:
+            for role, form in (("q", c), ("dot", c + "_dot"), ("ddot", c + "_ddot"), ("Q", "Q_" + c)):
+                if name == form:
+                    return role, c
+        return None, name
+    for role, suffix in (("ddot", "_ddot"), ("dot", "_dot")):
+        if name.endswith(suffix) and len(name) > len(suffix):
+            return role, name[: -len(suffix)]
+    if name.startswith("Q_") and len(name) > 2:
+        return "Q", name[2:]
+    return "q", name
+
+
+def _display_names(expr, coords, for_latex: bool) -> dict:
+    """Map each free symbol to its display Symbol (pretty) or LaTeX string."""
+    out = {}
+    for s in expr.free_symbols:
+        role, c = _classify(s.name, coords)
+        if role in (None, "q"):
+            display = sp.Symbol(s.name)
+        elif role == "dot":
+            display = sp.Symbol(_dotted(c, "dot"))
+        elif role == "ddot":
+            display = sp.Symbol(_dotted(c, "ddot"))
+        else:                                                       # applied force Q on c
+            if for_latex:
+                out[s] = f"Q_{{{sp.latex(sp.Symbol(c))}}}"
+                continue
+            display = sp.Symbol("Q_" + sp.pretty(sp.Symbol(c), use_unicode=True))
+        out[s] = sp.latex(display) if for_latex else display
+    return out
+
+
+# ---------------------------------------------------------------------- renderers
+def plain(expr, digits: int = DIGITS) -> str:
+    """One line in sympy syntax (valid input again), rounded and trig-simplified."""
+    return sp.sstr(simplify(expr, digits), full_prec=False)
+
+
+def pretty(expr, digits: int = DIGITS, coords=None, wrap: int | None = 100) -> str:
+    """Unicode 2-D rendering with θ̇-style symbols (``sympy.pretty``).
+
+    Parameters
+    ----------
+    coords : list of str, optional
+        Coordinate names, to tell ``<q>_dot`` velocities from coordinates that merely end in
+        ``_dot``; inferred from the names when omitted.
+    wrap : int or None
+        Line width (None: no wrapping).
+    """
+    e = simplify(expr, digits)
+    return sp.pretty(e.xreplace(_display_names(e, coords, for_latex=False)), use_unicode=True,
+                     num_columns=wrap or 10_000, wrap_line=wrap is not None, full_prec=False)
+
+
+def latex(expr, digits: int = DIGITS, coords=None) -> str:
+    r"""LaTeX, e.g. ``\dot{\theta}_{1} \dot{\theta}_{2} \cos{\left(\theta_{1} - \theta_{2} \right)}``."""
+    e = simplify(expr, digits)
+    return sp.latex(e, symbol_names=_display_names(e, coords, for_latex=True), full_prec=False)
+
+
+_STYLES = ("pretty", "latex", "plain")
+
+
+def describe(model, digits: int = DIGITS, style: str = "pretty") -> str:
+    """H, L and the equations of motion of a fitted ``LagrangianSINDy``, ready to print.
+
+    Parameters
+    ----------
+    model : LagrangianSINDy
+        A fitted (or loaded) model.
+    digits : int
+        Significant digits of the coefficients.
+    style : {"pretty", "latex", "plain"}
+        Unicode 2-D, LaTeX (an ``align*`` block) or one line each in sympy syntax.
+    """
+    if style not in _STYLES:
+        raise ValueError(f"style must be one of {_STYLES}, got {style!r}")
+    if not hasattr(model, "hamiltonian_"):
+        raise ValueError("the model is not fitted yet; call fit() or load()")
+    coords = list(model.coords_)
+    H, L = model.hamiltonian_, model.lagrangian_
+    eoms = model.equations_of_motion()
+    if style == "latex":
+        rows = [rf"H &= {latex(H, digits, coords)}", rf"L &= {latex(L, digits, coords)}"]
+        rows += [rf"{latex(e.lhs, digits, coords)} &= {latex(e.rhs, digits, coords)}" for e in eoms]
+        return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
+    if style == "plain":
+        lines = [f"H = {plain(H, digits)}", f"L = {plain(L, digits)}", "equations of motion:"]
+        lines += [f"  {plain(e.lhs, digits)} = {plain(e.rhs, digits)}" for e in eoms]
+        return "\n".join(lines)
+    blocks = [_labelled("H = ", pretty(H, digits, coords)), _labelled("L = ", pretty(L, digits, coords)),
+              "equations of motion (M q̈ = F):"]
+    blocks += [_labelled("  ", pretty(e, digits, coords)) for e in eoms]
+    return "\n".join(blocks)
+
+
+def _labelled(label: str, block: str) -> str:
+    """Prefix a (possibly multi-line) pretty block with a label on its baseline."""
+    lines = block.split("\n")
+    if len(lines) == 1:
+        return label + block
+    # the baseline of a sympy pretty block is its lowest line holding a main-level symbol; for
+    # sums of fractions/powers that is where '+' / '=' appear
+    base = next((i for i, ln in enumerate(lines) if " = " in ln or " + " in ln or " - " in ln),
+                len(lines) // 2)
+    pad = " " * len(label)
+    return "\n".join((label if i == base else pad) + ln for i, ln in enumerate(lines))
