@@ -1,5 +1,4 @@
 """Readable output: rounding, trig folding, unicode/LaTeX symbols, the model summary."""
-import numpy as np
 import pytest
 import sympy as sp
 
