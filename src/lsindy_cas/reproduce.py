@@ -119,8 +119,8 @@ def table_one(progress=None) -> list:
 
 
 def _short(expr) -> str:
-    import sympy as sp
-    return str(sp.N(expr, 4)).replace("**", "^").replace("*", "·")
+    from .printing import plain      # 4 significant digits, trig products folded
+    return plain(expr, 4).replace("**", "^").replace("*", "·")
 
 
 def markdown(cells) -> str:
