@@ -28,7 +28,7 @@ def _gn(residual, x):
 
 def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth, dt,
                     stage_residual, terminal_residual, input_weight, state_lb, state_ub,
-                    bound_weight=1e3):
+                    extra_penalty=None, bound_weight=1e5):
     """Build the scoring function of all discrete sequences of length ``depth``.
 
     Parameters
@@ -49,6 +49,9 @@ def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth,
         Weight of ``(u / max|levels|)**2`` per interval (times ``dt``).
     state_lb, state_ub : ndarray, shape (n_state,)
         State bounds, enforced on the enumerated states by a quadratic penalty.
+    extra_penalty : casadi.Function, optional
+        ``x -> scalar`` added for every enumerated state (e.g. a band the discrete moves
+        should keep a rate in).
     bound_weight : float
         Weight of that penalty.
 
@@ -96,13 +99,13 @@ def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth,
     lb, ub = np.asarray(state_lb, float), np.asarray(state_ub, float)
 
     def violation(x):
-        out = 0
+        out = extra_penalty(x) if extra_penalty is not None else 0
         for i in range(n_state):
             if np.isfinite(ub[i]):
-                out += ca.fmax(x[i] - ub[i], 0) ** 2
+                out += bound_weight * ca.fmax(x[i] - ub[i], 0) ** 2
             if np.isfinite(lb[i]):
-                out += ca.fmax(lb[i] - x[i], 0) ** 2
-        return bound_weight * out
+                out += bound_weight * ca.fmax(lb[i] - x[i], 0) ** 2
+        return out
 
     x0 = ca.SX.sym("x0", n_state)
     frontier, costs = [x0], [ca.SX(0)]

@@ -2,10 +2,12 @@
 
 Decision variables are ordered stage by stage, ``[c_0, x_1, c_1, x_2, ..., c_{N-1}, x_N]``
 (the initial state ``x_0`` is the parameter ``p``), and constraints as
-``[gap_0, path_0, gap_1, path_1, ...]`` with ``gap_k = x_{k+1} - F(x_k, c_k)``: the block
-structure that fatrop and HPIPM exploit (``nx = [0, n, ..., n]``).  ``c_k`` is either a weight
-per admissible level (``relaxation="poc"``, partial outer convexification, one equality
-``sum(c_k) = 1`` per stage) or the continuous input itself (``relaxation="continuous"``).
+``[gap_0, path_0, gap_1, path_1, ...]`` with ``gap_k = x_{k+1} - F(x_k, c_k)`` (negated for
+HPIPM): the block structure that fatrop and HPIPM exploit (``nx = [0, n, ..., n]``).  ``c_k``
+is either a weight per admissible level (``relaxation="poc"``, partial outer convexification,
+one equality ``sum(c_k) = 1`` per stage) or the continuous input itself
+(``relaxation="continuous"``).  State bounds are soft: one slack ``s_k >= 0`` per stage with
+an exact (L1) plus quadratic penalty, so that no measured state makes a solve infeasible.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 
 __all__ = ["SOLVERS", "MultipleShootingNLP", "rk4_step"]
 
-SOLVERS = ("fatrop", "ipopt", "sqp-hpipm")
+SOLVERS = ("sqp", "sqp-gn", "fatrop", "ipopt")
 
 
 def rk4_step(ode, n_state, n_input, dt, n_substeps):
@@ -74,60 +76,121 @@ class MultipleShootingNLP:
         Weight ``r`` of the input penalty ``r * dt * sum_i c_i (F_i / F_max)**2`` (POC) or
         ``r * dt * (u / F_max)**2`` (continuous).
     state_lb, state_ub : ndarray, shape (n_state,)
-        Bounds on ``x_1 .. x_N``.
+        Soft bounds on ``x_1 .. x_{N-1}``.
     relaxation : {"poc", "continuous"}
-    solver : {"fatrop", "ipopt", "sqp-hpipm"}
+    solver : {"sqp", "sqp-gn", "fatrop", "ipopt"}
+        Solver of warm-started steps (:attr:`solver`); :attr:`cold_solver` is always IPOPT.
     max_iter : int
-        Iteration cap; a capped solve counts as failed.
+        Iteration cap of :attr:`solver`.
     tol : float
         Convergence tolerance.
+    slack_weight : float
+        Weight of ``s + s^2`` per stage for the soft state bounds.
     """
 
     def __init__(self, step, n_state, n_input, input_index, levels, horizon, dt,
                  stage_residual, terminal_residual, input_weight, state_lb, state_ub,
-                 relaxation, solver, max_iter, tol):
+                 relaxation, solver, max_iter, tol, slack_weight=1e5):
         self.n_state, self.horizon, self.relaxation = n_state, horizon, relaxation
         self.levels = np.asarray(levels, dtype=float)
         n_c = self.levels.size if relaxation == "poc" else 1
         self.n_control = n_c
         scale = float(np.max(np.abs(self.levels))) or 1.0
         level_dm = ca.DM(self.levels)
+        state_lb, state_ub = np.asarray(state_lb, float), np.asarray(state_ub, float)
+        bounded = [i for i in range(n_state)
+                   if np.isfinite(state_lb[i]) or np.isfinite(state_ub[i])]
+        n_s = 1 if bounded else 0  # one slack per stage softens every state bound
 
-        p = ca.SX.sym("x0", n_state)
-        cs = [ca.SX.sym(f"c{k}", n_c) for k in range(horizon)]
-        xs = [p] + [ca.SX.sym(f"x{k}", n_state) for k in range(1, horizon + 1)]
+        sym = ca.SX  # expanded: the oracle functions run in CasADi's fast SX virtual machine
+        p = sym.sym("x0", n_state)
+        cs = [sym.sym(f"c{k}", n_c) for k in range(horizon)]
+        # x_0 is given, so stage 0 has no slack: ss[k] softens the bounds of x_k, k >= 1
+        ss = [sym.sym(f"s{k}", n_s if k > 0 else 0) for k in range(horizon)]
+        xs = [p] + [sym.sym(f"x{k}", n_state) for k in range(1, horizon + 1)]
         z, g, f = [], [], 0
-        for k in range(horizon):
-            c = cs[k]
-            if relaxation == "poc":
-                force = ca.dot(level_dm, c)
-                penalty = ca.dot(c, ca.DM((self.levels / scale) ** 2))
+        lbg, ubg, rows = [], [], []
+        residuals = []  # for the Gauss-Newton Hessian
+
+        def soft_bounds(x, sk):
+            """Rows lb_i <= x_i + s and x_i - s <= ub_i for the bounded states."""
+            out = []
+            for i in bounded:
+                out += [x[i] + sk, x[i] - sk]
+                lbg.extend([state_lb[i], -np.inf])
+                ubg.extend([np.inf, state_ub[i]])
+            return out
+
+        for k in range(horizon + 1):
+            first = len(lbg)
+            stage_g = []
+            if k < horizon:
+                c = cs[k]
+                if relaxation == "poc":
+                    force = ca.dot(level_dm, c)
+                    penalty = ca.dot(c, ca.DM((self.levels / scale) ** 2))
+                else:
+                    force = c[0]
+                    penalty = (c[0] / scale) ** 2
+                u = ca.vertcat(*[force if i == input_index else 0 for i in range(n_input)])
+                z += [c, ss[k], xs[k + 1]]
+                gap = xs[k + 1] - step(xs[k], u)  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
+                stage_g.append(-gap if solver.startswith("sqp") else gap)
+                lbg.extend([0.0] * n_state)
+                ubg.extend([0.0] * n_state)
+                if relaxation == "poc":
+                    stage_g.append(ca.sum1(c) - 1)
+                    lbg.append(0.0)
+                    ubg.append(0.0)
+                f += dt * (ca.sumsqr(stage_residual(xs[k])) + input_weight * penalty)
+                if k > 0:
+                    residuals.append(np.sqrt(dt) * stage_residual(xs[k]))
+                    stage_g += soft_bounds(xs[k], ss[k])
+                if relaxation == "continuous":
+                    residuals.append(np.sqrt(dt * input_weight) * c[0] / scale)
+                if n_s and k > 0:
+                    f += slack_weight * (ca.sum1(ss[k]) + ca.sumsqr(ss[k]))
+                    residuals.append(np.sqrt(slack_weight) * ss[k])
             else:
-                force = c[0]
-                penalty = (c[0] / scale) ** 2
-            u = ca.vertcat(*[force if i == input_index else 0 for i in range(n_input)])
-            z += [c, xs[k + 1]]
-            gap = xs[k + 1] - step(xs[k], u)  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
-            g.append(-gap if solver == "sqp-hpipm" else gap)
-            if relaxation == "poc":
-                g.append(ca.sum1(c) - 1)
-            f += dt * (ca.sumsqr(stage_residual(xs[k])) + input_weight * penalty)
-        f += ca.sumsqr(terminal_residual(xs[horizon]))
+                f += ca.sumsqr(terminal_residual(xs[k]))
+                residuals.append(terminal_residual(xs[k]))
+            g += stage_g
+            rows.append(np.arange(first, len(lbg)))
         nlp = {"x": ca.vertcat(*z), "p": p, "f": f, "g": ca.vertcat(*g)}
-        n_g = n_state + (1 if relaxation == "poc" else 0)
-        self.n_var = horizon * (n_c + n_state)
-        self.lbg = np.zeros(horizon * n_g)
-        self.ubg = np.zeros(horizon * n_g)
+        # Gauss-Newton Hessian of the Lagrangian: 2 J'J of the stacked residuals, a small
+        # regularisation on every variable (the POC weights enter the cost linearly)
+        zz, lam_f, lam_g = nlp["x"], sym.sym("lam_f"), sym.sym("lam_g", len(lbg))
+        jr = ca.jacobian(ca.vertcat(*residuals), zz)
+        hess = lam_f * (2 * ca.mtimes(jr.T, jr) + 1e-6 * ca.DM.eye(zz.numel()))
+        self._gn_hessian = ca.Function("nlp_hess_l", [zz, p, lam_f, lam_g], [hess],
+                                       ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"])
+        self.lbg, self.ubg, self._rows = np.array(lbg), np.array(ubg), rows
+        self.n_slack = n_s
+        # index tables of the decision vector: stage k = [c_k, s_k, x_{k+1}] (no s_0)
+        widths = np.array([n_c + n_state] + [n_c + n_s + n_state] * (horizon - 1))
+        base = np.concatenate([[0], np.cumsum(widths)[:-1]])[:, None]
+        self._ic = base + np.arange(n_c)
+        self._is = base[1:] + n_c + np.arange(n_s)
+        self._ix = base + widths[:, None] - n_state + np.arange(n_state)
+        self.n_var = int(widths.sum())
         c_lb = np.zeros(n_c) if relaxation == "poc" else self.levels[:1]
         c_ub = np.ones(n_c) if relaxation == "poc" else self.levels[-1:]
-        self.lbx = np.tile(np.concatenate([c_lb, state_lb]), horizon)
-        self.ubx = np.tile(np.concatenate([c_ub, state_ub]), horizon)
-        ng_path = [n_g - n_state] * horizon + [0]
+        self.lbx = np.full(self.n_var, -np.inf)
+        self.ubx = np.full(self.n_var, np.inf)
+        self.lbx[self._ic], self.ubx[self._ic] = c_lb, c_ub
+        self.lbx[self._is] = 0.0
+        ng_path = [len(r) - (n_state if k < horizon else 0) for k, r in enumerate(rows)]
+        nu = [n_c] + [n_c + n_s] * (horizon - 1) + [0]
         self.solver_name = solver
-        self.solver = self._make_solver(nlp, solver, ng_path, max_iter, tol)
+        self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol)
+        # cold starts (first step of an episode) need many more iterations than warm ones:
+        # a separate exact-Hessian interior-point solver on the same NLP
+        self._max_iter, self._cold_max_iter = max_iter, max(10 * max_iter, 300)
+        self.cold_solver = self._make_solver(nlp, "ipopt", nu, ng_path, self._cold_max_iter,
+                                             tol)
 
-    def _make_solver(self, nlp, solver, ng_path, max_iter, tol):
-        n, N, m = self.n_state, self.horizon, self.n_control
+    def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol):
+        n, N = self.n_state, self.horizon
         common = {"expand": True, "print_time": False, "error_on_fail": False}
         if solver == "ipopt":
             opts = dict(common, ipopt={
@@ -136,50 +199,94 @@ class MultipleShootingNLP:
                 "mu_init": 1e-3, "warm_start_bound_push": 1e-6,
                 "warm_start_mult_bound_push": 1e-6, "linear_solver": "mumps"})
             return ca.nlpsol("mpc", "ipopt", nlp, opts)
-        structure = {"N": N, "nx": [0] + [n] * N, "nu": [m] * N + [0], "ng": ng_path}
+        structure = {"N": N, "nx": [0] + [n] * N, "nu": nu, "ng": ng_path}
         if solver == "fatrop":
             opts = dict(common, structure_detection="manual", **structure,
                         fatrop={"print_level": 0, "max_iter": max_iter, "tolerance": tol,
                                 "mu_init": 1e-2})
             return ca.nlpsol("mpc", "fatrop", nlp, opts)
-        if solver == "sqp-hpipm":
-            qp = dict(structure, nu=[m] * N, hpipm={"iter_max": 100, "warm_start": 1})
-            opts = dict(common, qpsol="hpipm", qpsol_options=dict(qp, error_on_fail=False),
-                        max_iter=max_iter, tol_pr=tol, tol_du=tol,
-                        convexify_strategy="eigen-clip", print_header=False,
-                        print_iteration=False, print_status=False)
-            return ca.nlpsol("mpc", "sqpmethod", nlp, opts)
-        raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}.")
+        # SQP with HPIPM (a Riccati-based interior-point QP solver for this stage structure);
+        # the exact Hessian is convexified block by block, "sqp-gn" uses Gauss-Newton instead
+        qp = dict(structure, hpipm={"iter_max": 100, "warm_start": 1}, error_on_fail=False)
+        opts = dict(common, qpsol="hpipm", qpsol_options=qp, max_iter=max_iter, tol_pr=tol,
+                    tol_du=10 * tol, print_header=False, print_iteration=False,
+                    print_status=False)
+        if solver == "sqp":
+            opts["convexify_strategy"] = "eigen-clip"
+        else:
+            opts["hess_lag"] = self._gn_hessian
+        return ca.nlpsol("mpc", "sqpmethod", nlp, opts)
 
     # --- packing -------------------------------------------------------------------------
-    def pack(self, controls, states):
-        """Decision vector from controls (N, n_control) and states x_1..x_N (N, n_state)."""
-        return np.hstack([controls, states]).ravel()
+    def pack(self, controls, states, slacks=None):
+        """Decision vector from controls (N, n_control), states x_1..x_N (N, n_state) and
+        slacks of the bounds on x_1..x_{N-1} (N - 1, n_slack; zero if omitted)."""
+        z = np.zeros(self.n_var)
+        z[self._ic], z[self._ix] = controls, states
+        if slacks is not None:
+            z[self._is] = slacks
+        return z
 
     def unpack(self, z):
-        """Controls (N, n_control) and states x_1..x_N (N, n_state) from a decision vector."""
-        block = np.asarray(z, dtype=float).reshape(self.horizon, self.n_control + self.n_state)
-        return block[:, : self.n_control], block[:, self.n_control:]
+        """Controls (N, n_control), states x_1..x_N (N, n_state), slacks (N - 1, n_slack)."""
+        z = np.asarray(z, dtype=float).ravel()
+        return z[self._ic], z[self._ix], z[self._is]
 
     def shift(self, z, lam_g):
         """Warm start for the next step: drop the first interval, repeat the last one."""
-        width = self.n_control + self.n_state
-        z = np.asarray(z, dtype=float)
-        zs = np.concatenate([z[width:], z[-width:]])
-        lam_g = np.asarray(lam_g, dtype=float)
-        rows = lam_g.size // self.horizon
-        ls = np.concatenate([lam_g[rows:], lam_g[-rows:]])
+        roll = (lambda a: np.concatenate([a[1:], a[-1:]]))
+        c, x, s = self.unpack(z)
+        zs = self.pack(roll(c), roll(x), roll(s))
+        lam_g = np.asarray(lam_g, dtype=float).ravel()
+        ls = lam_g.copy()
+        for k in range(self.horizon - 1):
+            cur, nxt = self._rows[k], self._rows[k + 1]
+            if nxt.size >= cur.size:
+                ls[cur] = lam_g[nxt[: cur.size]]
         return zs, ls
 
-    def solve(self, x_init, z0, lam_g0, lam_x0):
-        """Solve from state ``x_init`` with warm start; returns ``(ok, z, lam_g, lam_x, iters)``."""
-        res = self.solver(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg,
-                          ubg=self.ubg, lam_g0=lam_g0, lam_x0=lam_x0)
-        st = self.solver.stats()
+    def solve(self, x_init, z0, lam_g0, lam_x0, cold=False):
+        """Solve from state ``x_init`` with a warm start.
+
+        Parameters
+        ----------
+        x_init : ndarray, shape (n_state,)
+        z0, lam_g0, lam_x0 : ndarray
+            Primal and dual initial guesses.
+        cold : bool
+            Use :attr:`cold_solver` (for a guess that is not a shifted solution).
+
+        Returns
+        -------
+        outcome : {"converged", "inexact", "failed"}
+            ``"inexact"``: the iteration cap was hit but the iterate satisfies every constraint
+            to ``1e-6`` (a dynamically consistent, feasible plan).
+        z, lam_g, lam_x : ndarray
+            Final iterate.
+        iters : int
+        """
+        solver = self.cold_solver if cold else self.solver
+        res = solver(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg,
+                     ubg=self.ubg, lam_g0=lam_g0, lam_x0=lam_x0)
+        st = solver.stats()
         z = np.asarray(res["x"]).ravel()
-        ok = bool(st.get("success", False)) or st.get("return_status") in (
-            "Solved_To_Acceptable_Level",)
-        ok = ok and bool(np.all(np.isfinite(z)))
-        self.last_status = str(st.get("return_status", st.get("unified_return_status", "")))
+        g = np.asarray(res["g"]).ravel()
+        status = str(st.get("return_status", st.get("unified_return_status", "")))
+        self.last_status = status
+        finite = bool(np.all(np.isfinite(z)) and np.all(np.isfinite(g)))
+        viol = max(0.0, np.max(self.lbg - g, initial=0.0), np.max(g - self.ubg, initial=0.0),
+                   np.max(self.lbx - z, initial=0.0), np.max(z - self.ubx, initial=0.0))
+        # sqpmethod may report success=False next to a converged "Solve_Succeeded" (when the
+        # QP of the final, unneeded iteration reported a problem): trust the status
+        converged = bool(st.get("success", False)) or status in (
+            "Solve_Succeeded", "Solved_To_Acceptable_Level")
         iters = int(st.get("iter_count", -1))
-        return ok, z, np.asarray(res["lam_g"]).ravel(), np.asarray(res["lam_x"]).ravel(), iters
+        capped = iters >= (self._cold_max_iter if cold else self._max_iter)
+        self.last_violation = viol
+        if finite and converged:
+            outcome = "converged"
+        elif finite and capped and viol <= 1e-6:
+            outcome = "inexact"
+        else:
+            outcome = "failed"
+        return outcome, z, np.asarray(res["lam_g"]).ravel(), np.asarray(res["lam_x"]).ravel(), iters

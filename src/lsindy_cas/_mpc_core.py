@@ -1,0 +1,319 @@
+"""The generic part of :mod:`lsindy_cas.mpc`: a discrete-input MPC on any CasADi ODE.
+
+:class:`DiscreteInputMPC` is a multiple-shooting MPC on any ``casadi.Function``
+``ode(x, u) -> xdot`` whose actuated input may only take values from a finite set.  Each step
+solves a relaxation (partial outer convexification: one weight per admissible level, the weights
+summing to 1; or a continuous input) warm-started from the shifted previous solution, then rounds
+the first interval's relaxed decision to one admissible level, carrying the rounding error across
+steps (sum-up rounding, see :mod:`lsindy_cas._rounding`).  A failed or non-converged solve falls
+back to the shifted previous plan and is counted in :attr:`DiscreteInputMPC.stats`.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ._ocp import SOLVERS, MultipleShootingNLP, rk4_step
+from ._lookahead import build_lookahead
+from ._rounding import ROUNDINGS, weights_from_value
+
+__all__ = ["DiscreteInputMPC", "MPCStats"]
+
+
+@dataclass
+class MPCStats:
+    """Counters of an MPC's solves, accumulated over episodes until :meth:`clear`.
+
+    Attributes
+    ----------
+    n_solves : int
+        NLP solves attempted (one per control step).
+    n_failures : int
+        Solves that failed or did not converge to a usable plan; each applied the shifted
+        previous plan instead.
+    n_inexact : int
+        Solves stopped by the iteration cap whose iterate satisfied every constraint (dynamics,
+        bounds) and was applied (only with ``accept_inexact=True``).
+    solve_times : list of float
+        Wall-clock seconds per solve (the solver call only).
+    solve_cpu_times : list of float
+        CPU seconds of the calling thread per solve: unlike the wall-clock time, not inflated
+        when other processes compete for the cores.
+    step_times : list of float
+        Wall-clock seconds per controller call (solve + warm start + rounding + checks).
+    iterations : list of int
+        Solver iterations per solve.
+    statuses : dict
+        Count of each solver return status.
+    """
+
+    n_solves: int = 0
+    n_failures: int = 0
+    n_inexact: int = 0
+    solve_times: list = field(default_factory=list)
+    solve_cpu_times: list = field(default_factory=list)
+    step_times: list = field(default_factory=list)
+    iterations: list = field(default_factory=list)
+    statuses: dict = field(default_factory=dict)
+
+    def clear(self):
+        """Reset all counters."""
+        self.__init__()
+
+    def summary(self):
+        """Dictionary of counts and solve-time percentiles in milliseconds."""
+        t = np.asarray(self.solve_times) * 1e3
+        c = np.asarray(self.solve_cpu_times) * 1e3
+        s = np.asarray(self.step_times) * 1e3
+        pct = (lambda a, q: float(np.percentile(a, q)) if a.size else float("nan"))
+        return {"n_solves": self.n_solves, "n_failures": self.n_failures,
+                "n_inexact": self.n_inexact,
+                "solve_ms_median": pct(t, 50), "solve_ms_p99": pct(t, 99),
+                "solve_ms_max": float(t.max()) if t.size else float("nan"),
+                "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),
+                "step_ms_median": pct(s, 50), "step_ms_p99": pct(s, 99),
+                "iterations_median": pct(np.asarray(self.iterations), 50)}
+
+
+def _check_levels(force_set):
+    """Validated, sorted, unique admissible levels as a float array."""
+    if isinstance(force_set, (str, bytes)) or not np.iterable(force_set):
+        raise TypeError("force_set must be a sequence of numbers, e.g. (-10.0, 0.0, 10.0).")
+    items = list(force_set)
+    if not items:
+        raise ValueError("force_set is empty; give at least one admissible force.")
+    for v in items:
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise TypeError(f"force_set must contain only real numbers, got {v!r}.")
+    levels = np.unique(np.asarray(items, dtype=float))
+    if not np.all(np.isfinite(levels)):
+        raise ValueError("force_set must contain only finite numbers.")
+    return levels
+
+
+def _check_positive(name, value, integer=False):
+    kind = numbers.Integral if integer else numbers.Real
+    if isinstance(value, bool) or not isinstance(value, kind):
+        raise TypeError(f"{name} must be {'an integer' if integer else 'a number'}, "
+                        f"got {value!r}.")
+    if not value > 0 or not math.isfinite(value):
+        raise ValueError(f"{name} must be {'>= 1' if integer else 'positive and finite'}, "
+                         f"got {value!r}.")
+    return int(value) if integer else float(value)
+
+
+class DiscreteInputMPC:
+    """Multiple-shooting MPC whose single actuated input takes values in a finite set.
+
+    Parameters
+    ----------
+    ode : casadi.Function
+        ``(x (n_state,), u (n_input,)) -> xdot (n_state,)``, e.g. ``model.ode()``.
+    levels : sequence of float
+        Admissible values of ``u[input_index]`` (the other inputs are held at zero).
+    input_index : int
+        Which entry of ``u`` is actuated.
+    stage_residual, terminal_residual : casadi.Function
+        ``x -> r`` (least-squares costs); the objective is
+        ``sum_k dt * (|r(x_k)|^2 + input penalty) + |r_N(x_N)|^2``.
+    dt : float
+        Control period in seconds (zero-order hold).
+    horizon : int
+        Number of control intervals predicted.
+    state_lb, state_ub : array_like, shape (n_state,), optional
+        Bounds imposed on every predicted state after the first.
+    input_weight : float
+        Weight of the normalised input penalty.
+    n_substeps : int
+        RK4 steps per control interval.
+    solver : {"sqp", "sqp-gn", "fatrop", "ipopt"}
+        Solver of the warm-started steps: SQP with the exact (convexified) Hessian and HPIPM
+        QPs, SQP with a Gauss-Newton Hessian, fatrop or IPOPT (see ``benchmarks/bench_mpc.py``
+        for the comparison that chose the default).
+    relaxation : {"poc", "continuous"}
+        Outer-convexified weights per level, or a continuous input in ``[min, max]``.
+    rounding : {"sur", "nearest"}
+        Sum-up rounding carried across steps, or plain rounding to the largest weight /
+        nearest level.
+    max_iter : int
+        Iteration cap per warm-started solve.  The first solve of an episode (from a cold
+        guess) and the solve right after a failure use IPOPT with ``max(10 * max_iter, 300)``
+        iterations instead.
+    tol : float
+        Solver tolerance.
+    accept_inexact : bool
+        Apply a capped solve's iterate if it satisfies every constraint (counted in
+        ``stats.n_inexact``); otherwise such a solve is a failure (fallback).
+    lookahead_penalty : casadi.Function, optional
+        ``x -> scalar`` added to the cost of every state the lookahead enumerates.
+    """
+
+    def __init__(self, ode, levels, *, input_index, stage_residual, terminal_residual, dt,
+                 horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
+                 solver="sqp", relaxation="poc", rounding="lookahead", depth=4,
+                 max_iter=10, tol=1e-4, accept_inexact=True, lookahead_penalty=None):
+        if not isinstance(ode, ca.Function):
+            raise TypeError(f"ode must be a casadi.Function, got {type(ode).__name__}.")
+        self.levels = _check_levels(levels)
+        self.dt = _check_positive("dt", dt)
+        self.horizon = _check_positive("horizon", horizon, integer=True)
+        n_substeps = _check_positive("n_substeps", n_substeps, integer=True)
+        if solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}.")
+        if relaxation not in ("poc", "continuous"):
+            raise ValueError(f"relaxation must be 'poc' or 'continuous', got {relaxation!r}.")
+        if rounding not in (*ROUNDINGS, "lookahead"):
+            raise ValueError(f"rounding must be one of {(*ROUNDINGS, 'lookahead')}, "
+                             f"got {rounding!r}.")
+        self.n_state, self.n_input = ode.size1_in(0), ode.size1_in(1)
+        if not 0 <= input_index < self.n_input:
+            raise ValueError(f"input_index must be in [0, {self.n_input}), got {input_index}.")
+        self.input_index = int(input_index)
+        inf = np.full(self.n_state, np.inf)
+        lb = -inf if state_lb is None else np.asarray(state_lb, dtype=float)
+        ub = inf if state_ub is None else np.asarray(state_ub, dtype=float)
+        self.step_function = rk4_step(ode, self.n_state, self.n_input, self.dt, n_substeps)
+        self.nlp = MultipleShootingNLP(
+            self.step_function, self.n_state, self.n_input, self.input_index, self.levels,
+            self.horizon, self.dt, stage_residual, terminal_residual, float(input_weight), lb,
+            ub, relaxation, solver, int(max_iter), float(tol))
+        self.solver, self.relaxation, self.rounding = solver, relaxation, rounding
+        self.accept_inexact = bool(accept_inexact)
+        self._lookahead = None
+        if rounding == "lookahead":
+            self.depth = _check_positive("depth", depth, integer=True)
+            if self.depth >= self.horizon:
+                raise ValueError(f"depth must be smaller than horizon ({self.horizon}), "
+                                 f"got {depth}.")
+            self._lookahead = build_lookahead(
+                self.step_function, self.n_state, self.n_input, self.input_index,
+                self.levels, self.horizon, self.depth, self.dt, stage_residual,
+                terminal_residual, float(input_weight), lb, ub, lookahead_penalty)
+            self._rounder = ROUNDINGS["nearest"](self.levels.size)
+        else:
+            self._rounder = ROUNDINGS[rounding](self.levels.size)
+        self._rollout = self.step_function.mapaccum(self.horizon)
+        self.stats = MPCStats()
+        self.reset()
+
+    # --- episode state ---------------------------------------------------------------
+    def reset(self):
+        """Forget the warm start and the rounding memory (call between episodes).
+
+        :attr:`stats` keeps accumulating; use ``stats.clear()`` to reset it.
+        """
+        self._warm = None
+        self._failed = False
+        self._rounder.reset()
+        self.plan_ = None
+
+    def _weights(self, c):
+        """Relaxed level weights (n_levels,) of one stage's control vector."""
+        if self.relaxation == "poc":
+            return np.asarray(c, dtype=float)
+        return weights_from_value(float(c[0]), self.levels)
+
+    def _control_of_force(self, force):
+        """Stage control vector representing the force ``force`` (an admissible level)."""
+        if self.relaxation == "poc":
+            return weights_from_value(force, self.levels)
+        return np.array([force])
+
+    def _cold_start(self, x):
+        """Initial guess: roll the model out under a short push, then the level nearest zero.
+
+        The push breaks the symmetry of rest states where every gradient of the cost vanishes
+        (e.g. a pendulum hanging straight down).
+        """
+        zero = self.levels[np.argmin(np.abs(self.levels))]
+        forces = np.full(self.horizon, zero)
+        forces[: max(1, self.horizon // 10)] = self.levels[-1]
+        u = np.zeros((self.n_input, self.horizon))
+        u[self.input_index] = forces
+        states = np.asarray(self._rollout(x, u)).T
+        if not np.all(np.isfinite(states)):
+            states = np.tile(x, (self.horizon, 1))
+        controls = np.array([self._control_of_force(f) for f in forces])
+        z = self.nlp.pack(controls, states)
+        return z, np.zeros(self.nlp.lbg.size), np.zeros(z.size)
+
+    def _choose_by_lookahead(self, x, controls, states):
+        """Level index starting the cheapest discrete sequence (see :mod:`._lookahead`)."""
+        forces = np.array([self._weights(c) @ self.levels for c in controls])
+        span = self.levels[-1] - self.levels[0]
+        free = ((forces > self.levels[0] + 1e-3 * span)
+                & (forces < self.levels[-1] - 1e-3 * span)).astype(float)
+        # candidates for the first move: the levels adjacent to the relaxed first input
+        # (the dynamics are affine in it), or that level alone if it is (almost) one
+        w0 = weights_from_value(forces[0], self.levels)
+        w0[w0 < 1e-2] = 0.0
+        cost = np.asarray(self._lookahead(x, states.T, forces[None, :], free[None, :])).ravel()
+        first = np.repeat(w0 > 0, self.levels.size ** (self.depth - 1))
+        cost = np.where(first, cost, np.inf)
+        if not np.any(np.isfinite(cost)):
+            return self._rounder(w0)
+        return int(np.argmin(cost)) // self.levels.size ** (self.depth - 1)
+
+    def _check_state(self, x):
+        try:
+            x = np.asarray(x, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise TypeError("x must be a sequence of numbers (the state [q, q_dot]).") from None
+        if x.size != self.n_state:
+            raise ValueError(f"x must have {self.n_state} entries [q, q_dot], got {x.size}.")
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"x must be finite, got {x.tolist()}.")
+        return x
+
+    # --- one control step ------------------------------------------------------------
+    def __call__(self, x):
+        """Solve from state ``x`` (shape (n_state,)) and return the force to apply.
+
+        Returns
+        -------
+        float
+            Exactly one element of the admissible level set.
+        """
+        t_start = time.perf_counter()
+        x = self._check_state(x)
+        # the robust solver for a cold guess, and once after a failure (so that a run of
+        # failures cannot keep replaying an exhausted plan)
+        cold = self._warm is None or self._failed
+        z0, lam_g0, lam_x0 = self._cold_start(x) if self._warm is None else self._warm
+        t0, c0 = time.perf_counter(), time.thread_time()
+        try:
+            outcome, z, lam_g, lam_x, iters = self.nlp.solve(x, z0, lam_g0, lam_x0, cold=cold)
+            status = self.nlp.last_status
+        except RuntimeError:  # e.g. NaN in a function evaluation of a bad model
+            outcome, z, lam_g, lam_x, iters = "failed", z0, lam_g0, lam_x0, -1
+            status = "exception"
+        if outcome == "inexact":
+            self.stats.n_inexact += 1
+        ok = outcome == "converged" or (outcome == "inexact" and self.accept_inexact)
+        self.stats.solve_times.append(time.perf_counter() - t0)
+        self.stats.solve_cpu_times.append(time.thread_time() - c0)
+        self.stats.statuses[status] = self.stats.statuses.get(status, 0) + 1
+        self.stats.iterations.append(iters)
+        self.stats.n_solves += 1
+        self._failed = not ok
+        if not ok:
+            # apply the previous plan (already shifted into z0) and warm-start from it
+            self.stats.n_failures += 1
+            z, lam_g, lam_x = z0, lam_g0, lam_x0
+        controls, states, _ = self.nlp.unpack(z)
+        if self._lookahead is not None:
+            index = self._choose_by_lookahead(x, controls, states)
+        else:
+            index = self._rounder(self._weights(controls[0]))
+        force = float(self.levels[index])
+        self.plan_ = {"controls": controls, "states": states, "success": ok}
+        zs, lgs = self.nlp.shift(z, lam_g)
+        self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+        self.stats.step_times.append(time.perf_counter() - t_start)
+        return force

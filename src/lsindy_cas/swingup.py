@@ -1,0 +1,354 @@
+"""Swing-up of the cart-pendulum with an identified model (paper Sec. III-C, Fig. 5).
+
+Pipeline: simulate the paper's actuated training run, identify the cart-pendulum with
+:class:`~lsindy_cas.LagrangianSINDy`, build a :class:`~lsindy_cas.mpc.SwingUpMPC` from the
+*identified* model, and run closed-loop episodes on the *true* plant (integrated accurately by
+CVODES, force held constant over each control period).  Scenarios: ``nominal`` (plant = the
+true system), ``mismatch`` (each of the plant's cart mass, pole mass and pole length off by ±10 %
+against the true system the model was identified from, sign drawn per episode) and ``noise``
+(the controller measures the state with additive N(0, sigma^2) noise, sigma = 0.01).
+
+Success (issue 3): |wrap(theta - pi)| < 0.1 rad and |theta_dot| < 0.5 rad/s over the last 3 s of
+a 10 s episode, checked every 10 ms, and |x| <= 2 m throughout.  The time to upright is the
+first time from which these angle and rate bounds hold until the end of the episode.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["Episode", "Plant", "add_swingup_arguments", "evaluate", "identify_cart_pendulum",
+           "random_starts", "run_episode", "run_from_args", "run_swingup"]
+
+ANGLE_TOL, RATE_TOL, WINDOW, T_END = 0.1, 0.5, 3.0, 10.0
+SCENARIOS = ("nominal", "mismatch", "noise")
+
+
+class Plant:
+    """A mechanical system integrated under a zero-order-hold input, for closed-loop runs.
+
+    Parameters
+    ----------
+    system : MechanicalSystem
+        The true plant (``ode()``, ``coords``, ``actuated``).
+    dt : float
+        Control period (s): the input is held constant over each period.
+    n_out : int
+        States returned per period (at ``dt / n_out`` spacing) so that constraints are
+        checked between control instants too.
+    tol : float
+        CVODES absolute and relative tolerance.
+    """
+
+    def __init__(self, system, dt, n_out=5, tol=1e-10):
+        self.coords = list(system.coords)
+        self.dt, self.n_out = float(dt), int(n_out)
+        n = len(self.coords)
+        self.input_index = self.coords.index(system.actuated)
+        x, u = ca.SX.sym("x", 2 * n), ca.SX.sym("u", n)
+        grid = np.linspace(0.0, self.dt, self.n_out + 1)[1:]
+        self._integrator = ca.integrator("plant", "cvodes",
+                                         {"x": x, "p": u, "ode": system.ode()(x, u)}, 0.0, grid,
+                                         {"abstol": tol, "reltol": tol})
+        self._u = np.zeros(n)
+
+    def step(self, x, force):
+        """States over one period from ``x`` under ``force``: shape (n_out, 2n), last = end."""
+        self._u[self.input_index] = force
+        return np.asarray(self._integrator(x0=x, p=self._u)["xf"]).T
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def evaluate(t, X, *, upright=np.pi, cart=0, pole=1, track_limit=2.0, t_end=None):
+    """Success, time to upright and track used of one trajectory.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n_samples,)
+        Times (s).
+    X : ndarray, shape (n_samples, 4)
+        States ``[q, q_dot]`` in the plant's coordinate order.
+    upright : float
+        Upright pole angle (rad).
+    cart, pole : int
+        Indices of the cart and pole coordinates.
+    track_limit : float
+        Allowed ``|x|`` (m).
+    t_end : float, optional
+        Episode length; defaults to ``t[-1]``.
+
+    Returns
+    -------
+    success : bool
+    time_to_upright : float
+        ``inf`` if the bounds do not hold at the end.
+    track_used : float
+        ``max |x|`` (m).
+    """
+    t_end = t[-1] if t_end is None else t_end
+    good = (np.abs(_wrap(X[:, pole] - upright)) < ANGLE_TOL) & (np.abs(X[:, 2 + pole]) < RATE_TOL)
+    track_used = float(np.max(np.abs(X[:, cart])))
+    bad = np.flatnonzero(~good)
+    if bad.size == 0:
+        t_up = float(t[0])
+    elif bad[-1] == t.size - 1:
+        t_up = math.inf
+    else:
+        t_up = float(t[bad[-1] + 1])
+    success = bool(t_up <= t_end - WINDOW + 1e-9 and track_used <= track_limit)
+    return success, t_up, track_used
+
+
+@dataclass
+class Episode:
+    """One closed-loop run: fine-grained plant states, applied forces and metrics."""
+
+    x0: np.ndarray
+    t: np.ndarray
+    X: np.ndarray
+    forces: np.ndarray
+    success: bool
+    time_to_upright: float
+    track_used: float
+    n_failures: int
+    solve_times: list = field(default_factory=list)
+
+    def summary(self):
+        """JSON-ready metrics (no time series)."""
+        return {"x0": [round(float(v), 6) for v in self.x0], "success": self.success,
+                "time_to_upright": None if math.isinf(self.time_to_upright)
+                else round(self.time_to_upright, 4),
+                "track_used": round(self.track_used, 4), "n_failures": self.n_failures,
+                "forces_in_set": None}
+
+
+def run_episode(ctrl, plant, x0, *, t_end=T_END, noise_std=0.0, rng=None):
+    """Run ``ctrl`` on ``plant`` from ``x0`` for ``t_end`` seconds.
+
+    The controller's state order is its own ``coords`` (matched to the plant's by name); the
+    measured state is the true one plus N(0, noise_std^2) noise per entry.
+
+    Returns
+    -------
+    Episode
+    """
+    perm = [plant.coords.index(c) for c in ctrl.coords]
+    perm = perm + [len(perm) + i for i in perm]
+    rng = np.random.default_rng(0) if rng is None else rng
+    ctrl.reset()
+    n_steps = int(round(t_end / plant.dt))
+    x = np.asarray(x0, dtype=float)
+    states, forces = [x], np.zeros(n_steps)
+    n_fail0, n_solve0 = ctrl.stats.n_failures, len(ctrl.stats.solve_times)
+    for k in range(n_steps):
+        measured = x[perm] + (noise_std * rng.standard_normal(x.size) if noise_std else 0.0)
+        forces[k] = ctrl(measured)
+        fine = plant.step(x, forces[k])
+        states.append(fine)
+        x = fine[-1]
+        if not np.all(np.isfinite(x)):
+            break
+    X = np.vstack(states)
+    t = np.arange(X.shape[0]) * plant.dt / plant.n_out
+    pole = 1 - plant.input_index
+    ok, t_up, used = evaluate(t, X, upright=ctrl.upright if ctrl.upright is not None else np.pi,
+                              cart=plant.input_index, pole=pole, track_limit=ctrl.track_limit,
+                              t_end=t_end)
+    return Episode(np.asarray(x0, float), t, X, forces, ok, t_up, used,
+                   ctrl.stats.n_failures - n_fail0, list(ctrl.stats.solve_times[n_solve0:]))
+
+
+def random_starts(n, seed=0):
+    """Initial states ``[x, theta, x_dot, theta_dot]`` drawn as in issue 3.
+
+    theta ~ U[-pi, pi), x ~ U[-0.5, 0.5], both velocities ~ U[-1, 1]; shape (n, 4).
+    """
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(-np.pi, np.pi, n),
+                            rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)])
+
+
+def identify_cart_pendulum(system=None):
+    """Identify the cart-pendulum from the paper's actuated run (u = 1 N for 1 s, 100 Hz).
+
+    Returns
+    -------
+    model : LagrangianSINDy
+    trajectories : list of Trajectory
+        The training data.
+    """
+    from . import systems
+    from .library import Library
+    from .model import LagrangianSINDy
+
+    system = systems.cart_pendulum() if system is None else system
+    trajs = [system.simulate([0.0, np.pi / 4, 0.0, 0.0], 1.0, u=1.0, dt=0.01)]
+    lib = Library.polynomial(coords=["x", "theta"],
+                             features=["cos(theta)", "sin(theta)", "theta_dot", "x", "x_dot"],
+                             degree=3)
+    model = LagrangianSINDy(lib, n_terms=4, prior=["theta_dot**2", "cos(theta)"]).fit(trajs)
+    return model, trajs
+
+
+def _scenario_plant(name, rng, dt):
+    from . import systems
+
+    if name == "mismatch":
+        f = 1.0 + 0.1 * rng.choice([-1.0, 1.0], size=3)
+        return Plant(systems.cart_pendulum(mc=f[0], mp=0.1 * f[1], L=f[2]), dt), f.tolist()
+    return Plant(systems.cart_pendulum(), dt), None
+
+
+def _stats(episodes):
+    t_up = np.array([e.time_to_upright for e in episodes])
+    finite = t_up[np.isfinite(t_up)]
+    return {"episodes": len(episodes),
+            "success_rate": float(np.mean([e.success for e in episodes])),
+            "median_time_to_upright": float(np.median(t_up)) if t_up.size else None,
+            "max_time_to_upright": float(finite.max()) if finite.size else None,
+            "max_track_used": float(max(e.track_used for e in episodes)),
+            "n_failures": int(sum(e.n_failures for e in episodes))}
+
+
+def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_std=0.01,
+                out=None, json_path=None, controller_options=None, progress=print):
+    """Identify (unless ``model`` is given), control, and report (see module docstring).
+
+    Parameters
+    ----------
+    model : LagrangianSINDy, optional
+        A fitted cart-pendulum model; identified from simulated training data if omitted.
+    episodes : int
+        Random starts per scenario (:func:`random_starts` with ``seed``).
+    seed : int
+        Seed of the starts, the mismatch signs and the measurement noise.
+    scenarios : sequence of {"nominal", "mismatch", "noise"}
+    noise_std : float
+        Standard deviation of the measurement noise in the ``noise`` scenario.
+    out : path, optional
+        Directory for the Fig. 5 analogue (PNG).
+    json_path : path, optional
+        Where to write the metrics.
+    controller_options : dict, optional
+        Keyword arguments for :class:`~lsindy_cas.mpc.SwingUpMPC`.
+    progress : callable or None
+        Receives one line per episode.
+
+    Returns
+    -------
+    dict
+        Metrics per scenario, the controller's solve statistics and the model.
+    """
+    from .mpc import SwingUpMPC
+
+    episodes = int(episodes)
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}.")
+    unknown = set(scenarios) - set(SCENARIOS)
+    if unknown:
+        raise ValueError(f"scenarios must be among {SCENARIOS}, got {sorted(unknown)}.")
+    log = progress or (lambda msg: None)
+    trajs = []
+    if model is None:
+        model, trajs = identify_cart_pendulum()
+        log(f"identified model:\n{model}")
+    opts = dict(controller_options or {})
+    t0 = time.perf_counter()
+    ctrl = SwingUpMPC(model, **opts)
+    build_s = time.perf_counter() - t0
+    starts = random_starts(episodes, seed)
+    report = {"controller": {"solver": ctrl.solver, "relaxation": ctrl.relaxation,
+                             "rounding": ctrl.rounding, "dt": ctrl.dt, "horizon": ctrl.horizon,
+                             "force_set": ctrl.levels.tolist(), "upright": ctrl.upright,
+                             "build_seconds": round(build_s, 3)},
+              "criteria": {"angle_tol": ANGLE_TOL, "rate_tol": RATE_TOL, "window": WINDOW,
+                           "t_end": T_END, "track_limit": ctrl.track_limit},
+              "noise_std": noise_std, "seed": seed, "scenarios": {}}
+    runs = {}
+    for name in scenarios:
+        rng = np.random.default_rng([seed, SCENARIOS.index(name)])
+        eps, rows = [], []
+        ctrl.stats.clear()
+        for i, x0 in enumerate(starts):
+            plant, factors = _scenario_plant(name, rng, ctrl.dt)
+            ep = run_episode(ctrl, plant, x0, noise_std=noise_std if name == "noise" else 0.0,
+                             rng=rng)
+            row = ep.summary()
+            row["forces_in_set"] = bool(np.all(np.isin(ep.forces, ctrl.levels)))
+            if factors is not None:
+                row["plant_factors"] = factors
+            eps.append(ep)
+            rows.append(row)
+            log(f"{name:8s} {i:3d}  x0={np.round(x0, 2).tolist()}  success={ep.success}  "
+                f"t_up={ep.time_to_upright:.2f}s  |x|max={ep.track_used:.2f}m  "
+                f"fallbacks={ep.n_failures}")
+        runs[name] = eps
+        report["scenarios"][name] = dict(_stats(eps), solver=ctrl.stats.summary(),
+                                         episodes_detail=rows)
+    log(summary_table(report))
+    if json_path is not None:
+        Path(json_path).parent.mkdir(parents=True, exist_ok=True)
+        Path(json_path).write_text(json.dumps(report, indent=2))
+    if out is not None:
+        from .plots_mpc import swingup_figure
+
+        report["figures"] = [str(p) for p in swingup_figure(trajs, runs, ctrl, Path(out))]
+    return report
+
+
+def summary_table(report):
+    """Markdown table of the scenarios in a :func:`run_swingup` report."""
+    lines = ["| scenario | episodes | success | median t_up (s) | max t_up (s) | max |x| (m) "
+             "| fallbacks | solve median (ms) | solve p99 (ms) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for name, s in report["scenarios"].items():
+        fmt = (lambda v: "-" if v is None or not math.isfinite(v) else f"{v:.2f}")
+        lines.append(f"| {name} | {s['episodes']} | {100 * s['success_rate']:.0f} % | "
+                     f"{fmt(s['median_time_to_upright'])} | {fmt(s['max_time_to_upright'])} | "
+                     f"{s['max_track_used']:.2f} | {s['n_failures']} | "
+                     f"{s['solver']['solve_ms_median']:.2f} | {s['solver']['solve_ms_p99']:.2f} |")
+    return "\n".join(lines)
+
+
+def add_swingup_arguments(parser):
+    """Add the ``lsindy swingup`` options to an ``argparse`` parser."""
+    parser.add_argument("--model", metavar="MODEL.json",
+                        help="saved model (lsindy identify --json); identified afresh if omitted")
+    parser.add_argument("--episodes", type=int, default=20, help="random starts (default 20)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--scenarios", default=",".join(SCENARIOS),
+                        help="comma-separated subset of nominal,mismatch,noise (default all)")
+    parser.add_argument("--solver", default=None, help="fatrop (default), ipopt or sqp-hpipm")
+    parser.add_argument("--rounding", default=None, help="lookahead (default), sur or nearest")
+    parser.add_argument("--json", metavar="OUT.json", help="write the metrics as JSON")
+    parser.add_argument("--out", metavar="DIR", help="write the Fig. 5 analogue (PNG) here")
+    return parser
+
+
+def run_from_args(args):
+    """Run :func:`run_swingup` from parsed arguments; returns the exit code (0 = all passed)."""
+    model = None
+    if args.model:
+        from .model import LagrangianSINDy
+
+        model = LagrangianSINDy.load(args.model)
+    opts = {k: getattr(args, k) for k in ("solver", "rounding") if getattr(args, k, None)}
+    scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]
+    report = run_swingup(model, episodes=args.episodes, seed=args.seed, scenarios=scenarios,
+                         out=args.out, json_path=args.json, controller_options=opts)
+    if args.json:
+        print(f"metrics written to {args.json}")
+    for f in report.get("figures", []):
+        print(f"figure written to {f}")
+    nominal = report["scenarios"].get("nominal")
+    return 0 if nominal is None or nominal["success_rate"] == 1.0 else 1
