@@ -121,6 +121,7 @@ class Episode:
     time_to_upright: float
     track_used: float
     n_failures: int
+    coords: list = field(default_factory=lambda: ["x", "theta"])
     solve_times: list = field(default_factory=list)
 
     def summary(self):
@@ -165,7 +166,8 @@ def run_episode(ctrl, plant, x0, *, t_end=T_END, noise_std=0.0, rng=None):
                               cart=plant.input_index, pole=pole, track_limit=ctrl.track_limit,
                               t_end=t_end)
     return Episode(np.asarray(x0, float), t, X, forces, ok, t_up, used,
-                   ctrl.stats.n_failures - n_fail0, list(ctrl.stats.solve_times[n_solve0:]))
+                   ctrl.stats.n_failures - n_fail0, list(plant.coords),
+                   list(ctrl.stats.solve_times[n_solve0:]))
 
 
 def random_starts(n, seed=0):
@@ -173,9 +175,9 @@ def random_starts(n, seed=0):
 
     theta ~ U[-pi, pi), x ~ U[-0.5, 0.5], both velocities ~ U[-1, 1]; shape (n, 4).
     """
-    rng = np.random.default_rng(seed)
-    return np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(-np.pi, np.pi, n),
-                            rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)])
+    u = np.random.default_rng(seed).uniform(size=(int(n), 4))  # row i is start i for any n
+    low, high = np.array([-0.5, -np.pi, -1.0, -1.0]), np.array([0.5, np.pi, 1.0, 1.0])
+    return low + u * (high - low)
 
 
 def identify_cart_pendulum(system=None):
