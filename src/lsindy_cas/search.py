@@ -228,7 +228,7 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     supports, scores, degenerate = score_all(A, b, k, forced, D, progress)
     keys = np.where(degenerate, np.inf, scores)
     n_ok = int((~degenerate).sum())
-    order = _best_first(keys, min(n_ok, 2048))
+    order = _best_first(keys, min(n_ok, 8192))
     G, c = _normal_equations(A, b)
     candidates, winner, n_visited, n_reducible, pos = [], None, 0, 0, 0
     while pos < n_ok and n_visited < max_visits and winner is None:

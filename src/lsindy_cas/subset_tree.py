@@ -69,9 +69,11 @@ def _leaves(G, c, nodes: _Nodes, free, last):
     Returns (parent index, column position in ``free``, explained ‖y‖², smallest pivot), in
     lexicographic order.
     """
-    Rf = nodes.R[:, :, free]                                  # (B, j, nf)
-    piv = np.diag(G)[free][None, :] - np.einsum("bjf,bjf->bf", Rf, Rf)
-    num = c[free][None, :] - np.einsum("bjf,bj->bf", Rf, nodes.y)
+    everything = len(free) == G.shape[0]                      # no forced terms: skip the gather
+    Rf = nodes.R if everything else nodes.R[:, :, free]       # (B, j, nf)
+    dg, cf = (np.diag(G), c) if everything else (np.diag(G)[free], c[free])
+    piv = dg[None, :] - np.einsum("bjf,bjf->bf", Rf, Rf)
+    num = cf[None, :] - np.einsum("bjf,bj->bf", Rf, nodes.y)
     e = nodes.e[:, None] + num ** 2 / np.maximum(piv, 1e-300)
     pmin = np.minimum(nodes.pmin[:, None], piv)
     mask = np.arange(len(free))[None, :] > last[:, None]
