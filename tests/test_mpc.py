@@ -1,0 +1,252 @@
+"""Tests of the discrete-force MPC (issue 3): rounding, fallback, bad input, closed loop.
+
+The closed-loop checks run the controller built from the *identified* cart-pendulum on the true
+plant (CVODES, zero-order hold) and judge them by issue 3's success criterion.
+"""
+
+import importlib.util
+import math
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from lsindy_cas import systems
+from lsindy_cas._rounding import NearestRounding, SumUpRounding, weights_from_value
+from lsindy_cas.mpc import SwingUpMPC, find_upright
+from lsindy_cas.swingup import (Plant, evaluate, identify_cart_pendulum, random_starts,
+                                run_episode)
+
+FORCES = (-10.0, 0.0, 10.0)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return identify_cart_pendulum()[0]
+
+
+@pytest.fixture(scope="module")
+def ctrl(model):
+    return SwingUpMPC(model, force_set=FORCES, dt=0.05, horizon=40, track_limit=2.0)
+
+
+@pytest.fixture(scope="module")
+def plant():
+    return Plant(systems.cart_pendulum(), 0.05)
+
+
+class _Shifted:
+    """A cart-pendulum model whose pole angle is measured from the upward vertical."""
+
+    coords_ = ["x", "phi"]
+    actuated_ = ["x"]
+
+    def ode(self):
+        true = systems.cart_pendulum().ode()
+        x, u = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
+        return ca.Function("ode", [x, u], [true(x + ca.DM([0, np.pi, 0, 0]), u)],
+                           ["x", "u"], ["xdot"])
+
+
+class _Stub:
+    def __init__(self, coords, actuated, ode=None):
+        self.coords_, self.actuated_ = coords, actuated
+        self._ode = ode or systems.cart_pendulum().ode()
+
+    def ode(self):
+        return self._ode
+
+
+# --- rounding --------------------------------------------------------------------------------
+
+def test_weights_from_value_interpolates_adjacent_levels():
+    np.testing.assert_allclose(weights_from_value(2.5, FORCES), [0.0, 0.75, 0.25])
+    np.testing.assert_allclose(weights_from_value(-10.0, FORCES), [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(weights_from_value(25.0, FORCES), [0.0, 0.0, 1.0])  # clipped
+
+
+def test_sum_up_rounding_matches_relaxed_frequencies():
+    sur = SumUpRounding(3)
+    picks = [sur([0.25, 0.5, 0.25]) for _ in range(100)]
+    # the applied one-hot inputs integrate to the relaxed ones: 25 / 50 / 25 exactly after
+    # 100 steps (the deviation is < 1 at every step, and the totals are integers)
+    np.testing.assert_array_equal(np.bincount(picks, minlength=3), [25, 50, 25])
+
+
+def test_sum_up_rounding_deviation_stays_bounded_across_steps():
+    rng = np.random.default_rng(0)
+    sur = SumUpRounding(3)
+    worst = 0.0
+    for _ in range(5000):
+        sur(rng.dirichlet(np.ones(3)))
+        worst = max(worst, np.max(np.abs(sur.deficit)))
+    # sum-up rounding keeps the accumulated deviation bounded independently of the number of
+    # steps (<= 1 for 3 levels), unlike rounding each step on its own
+    assert worst <= 1.0
+    sur.reset()
+    np.testing.assert_array_equal(sur.deficit, 0.0)
+
+
+def test_sum_up_rounding_keeps_integral_weights_and_nearest_takes_largest():
+    sur = SumUpRounding(3)
+    assert [sur([0, 0, 1]) for _ in range(5)] == [2] * 5
+    assert NearestRounding(3)([0.2, 0.45, 0.35]) == 1
+
+
+def test_plain_rounding_drifts_where_sum_up_rounding_does_not():
+    # relaxed input 3 N held for 40 steps: nearest rounding applies 0 N throughout (integral
+    # error 120 N*steps), sum-up rounding applies +10 N in 12 of 40 steps (error 0)
+    w = weights_from_value(3.0, FORCES)
+    near, sur = NearestRounding(3), SumUpRounding(3)
+    applied_near = [FORCES[near(w)] for _ in range(40)]
+    applied_sur = [FORCES[sur(w)] for _ in range(40)]
+    assert sum(applied_near) == 0.0
+    assert sum(applied_sur) == pytest.approx(120.0)
+
+
+# --- upright angle, bad input ---------------------------------------------------------------
+
+def test_find_upright_from_the_model_for_either_angle_convention(model):
+    ode = model.ode()
+    assert find_upright(ode, 0, 1) == pytest.approx(-np.pi, abs=1e-6) or \
+        find_upright(ode, 0, 1) == pytest.approx(np.pi, abs=1e-6)
+    assert find_upright(_Shifted().ode(), 0, 1) == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("kwargs, exc, word", [
+    ({"force_set": ()}, ValueError, "force_set"),
+    ({"force_set": "abc"}, TypeError, "force_set"),
+    ({"force_set": (1.0, "a")}, TypeError, "force_set"),
+    ({"force_set": (1.0, float("nan"))}, ValueError, "force_set"),
+    ({"dt": 0.0}, ValueError, "dt"),
+    ({"dt": -0.05}, ValueError, "dt"),
+    ({"horizon": 0}, ValueError, "horizon"),
+    ({"horizon": 2.5}, TypeError, "horizon"),
+    ({"track_limit": -1.0}, ValueError, "track_limit"),
+    ({"solver": "cplex"}, ValueError, "solver"),
+    ({"rounding": "ceil"}, ValueError, "rounding"),
+])
+def test_bad_arguments_raise_naming_the_argument(model, kwargs, exc, word):
+    with pytest.raises(exc, match=word):
+        SwingUpMPC(model, **kwargs)
+
+
+def test_models_that_are_not_an_actuated_cart_pendulum_are_refused():
+    with pytest.raises(ValueError, match="actuated"):
+        SwingUpMPC(_Stub(["x", "theta"], []))
+    with pytest.raises(ValueError, match="two coordinates"):
+        SwingUpMPC(_Stub(["x", "theta", "phi"], ["x"]))
+    with pytest.raises(TypeError, match="model"):
+        SwingUpMPC(object())
+
+
+@pytest.mark.parametrize("state, exc", [
+    ([0.0, 0.0, 0.0], ValueError),
+    ([0.0, np.nan, 0.0, 0.0], ValueError),
+    ([0.0, np.inf, 0.0, 0.0], ValueError),
+    (["a", 0, 0, 0], TypeError),
+])
+def test_bad_states_raise(ctrl, state, exc):
+    with pytest.raises(exc, match="x must"):
+        ctrl(state)
+
+
+# --- fallback ------------------------------------------------------------------------------------
+
+def test_failed_solve_falls_back_to_the_shifted_previous_plan(model):
+    ctrl = SwingUpMPC(model)
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    ctrl(x)
+    previous = ctrl.plan_["controls"] @ ctrl.levels
+    failures = ctrl.stats.n_failures
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("solver crashed")
+
+    ctrl.nlp.solve = fail
+    force = ctrl(x)
+    assert force in FORCES
+    assert ctrl.stats.n_failures == failures + 1
+    assert ctrl.stats.statuses["exception"] == 1
+    # the plan used now is the previous one shifted by one interval
+    np.testing.assert_allclose(ctrl.plan_["controls"][:-1] @ ctrl.levels, previous[1:])
+    assert not ctrl.plan_["success"]
+
+
+def test_a_model_that_returns_nan_never_crashes_the_controller():
+    x, u = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
+    true = systems.cart_pendulum().ode()
+    # NaN as soon as the cart leaves x = 0 by more than 1 cm: every real solve breaks
+    bad = ca.Function("ode", [x, u], [true(x, u) + ca.if_else(ca.fabs(x[0]) > 0.01, np.nan, 0)])
+    ctrl = SwingUpMPC(_Stub(["x", "theta"], ["x"], bad), upright=np.pi)
+    forces = [ctrl([0.02 * k, 0.1, 0.1, 0.0]) for k in range(1, 4)]
+    assert set(forces) <= set(FORCES)
+    assert ctrl.stats.n_failures >= 1
+    assert ctrl.stats.summary()["n_solves"] == 3
+
+
+# --- closed loop -------------------------------------------------------------------------------
+
+def _check_episode(ep, ctrl):
+    assert set(np.unique(ep.forces)) <= set(FORCES)  # every applied force is in the set
+    assert ep.track_used <= 2.0
+    assert ep.success, (ep.x0, ep.time_to_upright, ep.track_used)
+
+
+def test_swings_up_from_rest(ctrl, plant):
+    # from rest every gradient of the cost vanishes; the cold start's push breaks the symmetry
+    ep = run_episode(ctrl, plant, [0.0, 0.0, 0.0, 0.0])
+    _check_episode(ep, ctrl)
+    # the minimum-time swing-up from rest with continuous |F| <= 10 N takes about 1.96 s
+    assert 1.9 < ep.time_to_upright < 3.0
+
+
+@pytest.mark.parametrize("i", [0, 1, 2])
+def test_closed_loop_random_starts_succeed(ctrl, plant, i):
+    _check_episode(run_episode(ctrl, plant, random_starts(20, seed=0)[i]), ctrl)
+
+
+def test_evaluate_applies_the_issue_criterion():
+    t = np.linspace(0, 10, 1001)
+    X = np.zeros((t.size, 4))
+    X[:, 1] = np.pi
+    X[t < 2.0, 1] = 0.0  # hanging until 2 s
+    ok, t_up, used = evaluate(t, X)
+    assert ok and t_up == pytest.approx(2.0) and used == 0.0
+    X[-1, 3] = 0.6  # rate too high at the very end
+    assert evaluate(t, X)[:2] == (False, math.inf)
+    X[-1, 3] = 0.0
+    X[500, 0] = 2.1  # off the track once
+    assert not evaluate(t, X)[0]
+
+
+@pytest.mark.slow
+def test_twenty_random_starts_all_succeed(ctrl, plant):
+    eps = [run_episode(ctrl, plant, x0) for x0 in random_starts(20, seed=0)]
+    for ep in eps:
+        _check_episode(ep, ctrl)
+    assert np.median([ep.time_to_upright for ep in eps]) <= 2.6
+
+
+# --- the script ----------------------------------------------------------------------------------
+
+def _script():
+    path = Path(__file__).resolve().parents[1] / "mpc" / "swingup.py"
+    spec = importlib.util.spec_from_file_location("swingup_script", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_swingup_script_runs_small_and_writes_json_and_figures(tmp_path):
+    code = _script().main(["--episodes", "1", "--scenarios", "nominal",
+                           "--json", str(tmp_path / "m.json"), "--out", str(tmp_path)])
+    assert code == 0
+    assert (tmp_path / "m.json").exists()
+    assert (tmp_path / "swingup_phase.png").exists() and (tmp_path / "swingup_time.png").exists()
+
+
+def test_swingup_script_bad_input_exits_2(capsys):
+    assert _script().main(["--episodes", "0"]) == 2
+    assert "episodes" in capsys.readouterr().err
