@@ -143,13 +143,16 @@ class DiscreteInputMPC:
         nearest level.
     max_iter : int
         Iteration cap per warm-started solve.  The first solve of an episode (from a cold
-        guess) and the solve right after a failure use IPOPT with ``max(10 * max_iter, 300)``
-        iterations instead.
+        guess) and recovery solves (see ``recover_after``) use IPOPT with
+        ``max(10 * max_iter, 300)`` iterations.
     tol : float
         Solver tolerance.
     accept_inexact : bool
         Apply a capped solve's iterate if it satisfies every constraint (counted in
         ``stats.n_inexact``); otherwise such a solve is a failure (fallback).
+    recover_after : int
+        After this many failed solves in a row the next solve is a recovery solve (IPOPT)
+        from the shifted plan.
     lookahead_penalty : casadi.Function, optional
         ``x -> scalar`` added to the cost of every state the lookahead enumerates.
     """
@@ -157,7 +160,8 @@ class DiscreteInputMPC:
     def __init__(self, ode, levels, *, input_index, stage_residual, terminal_residual, dt,
                  horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
                  solver="sqp", relaxation="poc", rounding="lookahead", depth=4,
-                 max_iter=10, tol=1e-4, accept_inexact=True, lookahead_penalty=None):
+                 max_iter=10, tol=1e-4, accept_inexact=True, lookahead_penalty=None,
+                 recover_after=1):
         if not isinstance(ode, ca.Function):
             raise TypeError(f"ode must be a casadi.Function, got {type(ode).__name__}.")
         self.levels = _check_levels(levels)
@@ -185,6 +189,7 @@ class DiscreteInputMPC:
             ub, relaxation, solver, int(max_iter), float(tol))
         self.solver, self.relaxation, self.rounding = solver, relaxation, rounding
         self.accept_inexact = bool(accept_inexact)
+        self.recover_after = int(recover_after)
         self._lookahead = None
         if rounding == "lookahead":
             self.depth = _check_positive("depth", depth, integer=True)
@@ -209,7 +214,7 @@ class DiscreteInputMPC:
         :attr:`stats` keeps accumulating; use ``stats.clear()`` to reset it.
         """
         self._warm = None
-        self._failed = False
+        self._failed = 0  # consecutive failed solves
         self._rounder.reset()
         self.plan_ = None
 
@@ -282,13 +287,14 @@ class DiscreteInputMPC:
         """
         t_start = time.perf_counter()
         x = self._check_state(x)
-        # the robust solver for a cold guess, and once after a failure (so that a run of
-        # failures cannot keep replaying an exhausted plan)
-        cold = self._warm is None or self._failed
+        # robust solvers for a cold guess, and after failures (so that a run of failures
+        # cannot keep replaying an exhausted plan)
+        kind = ("cold" if self._warm is None else
+                "recover" if self._failed >= self.recover_after else "warm")
         z0, lam_g0, lam_x0 = self._cold_start(x) if self._warm is None else self._warm
         t0, c0 = time.perf_counter(), time.thread_time()
         try:
-            outcome, z, lam_g, lam_x, iters = self.nlp.solve(x, z0, lam_g0, lam_x0, cold=cold)
+            outcome, z, lam_g, lam_x, iters = self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind)
             status = self.nlp.last_status
         except RuntimeError:  # e.g. NaN in a function evaluation of a bad model
             outcome, z, lam_g, lam_x, iters = "failed", z0, lam_g0, lam_x0, -1
@@ -301,7 +307,7 @@ class DiscreteInputMPC:
         self.stats.statuses[status] = self.stats.statuses.get(status, 0) + 1
         self.stats.iterations.append(iters)
         self.stats.n_solves += 1
-        self._failed = not ok
+        self._failed = 0 if ok else self._failed + 1
         if not ok:
             # apply the previous plan (already shifted into z0) and warm-start from it
             self.stats.n_failures += 1

@@ -79,7 +79,8 @@ class MultipleShootingNLP:
         Soft bounds on ``x_1 .. x_{N-1}``.
     relaxation : {"poc", "continuous"}
     solver : {"sqp", "sqp-gn", "fatrop", "ipopt"}
-        Solver of warm-started steps (:attr:`solver`); :attr:`cold_solver` is always IPOPT.
+        Solver of warm-started steps (:attr:`solver`); the robust solver for cold guesses
+        and for recovery after a failure is IPOPT (``solvers["cold"]``, ``["recover"]``).
     max_iter : int
         Iteration cap of :attr:`solver`.
     tol : float
@@ -183,11 +184,13 @@ class MultipleShootingNLP:
         nu = [n_c] + [n_c + n_s] * (horizon - 1) + [0]
         self.solver_name = solver
         self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol)
-        # cold starts (first step of an episode) need many more iterations than warm ones:
-        # a separate exact-Hessian interior-point solver on the same NLP
-        self._max_iter, self._cold_max_iter = max_iter, max(10 * max_iter, 300)
-        self.cold_solver = self._make_solver(nlp, "ipopt", nu, ng_path, self._cold_max_iter,
-                                             tol)
+        # cold starts (first step of an episode) and recoveries after a failed step need many
+        # more iterations than warm starts: exact-Hessian IPOPT on the same NLP
+        cold = max(10 * max_iter, 300)
+        self.max_iters = {"warm": max_iter, "recover": cold, "cold": cold}
+        self.solvers = {"warm": self.solver}
+        self.solvers["cold"] = self.solvers["recover"] = self._make_solver(
+            nlp, "ipopt", nu, ng_path, cold, tol)
 
     def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol):
         n, N = self.n_state, self.horizon
@@ -245,7 +248,7 @@ class MultipleShootingNLP:
                 ls[cur] = lam_g[nxt[: cur.size]]
         return zs, ls
 
-    def solve(self, x_init, z0, lam_g0, lam_x0, cold=False):
+    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm"):
         """Solve from state ``x_init`` with a warm start.
 
         Parameters
@@ -253,8 +256,8 @@ class MultipleShootingNLP:
         x_init : ndarray, shape (n_state,)
         z0, lam_g0, lam_x0 : ndarray
             Primal and dual initial guesses.
-        cold : bool
-            Use :attr:`cold_solver` (for a guess that is not a shifted solution).
+        kind : {"warm", "recover", "cold"}
+            Which solver of :attr:`solvers` to use.
 
         Returns
         -------
@@ -265,7 +268,7 @@ class MultipleShootingNLP:
             Final iterate.
         iters : int
         """
-        solver = self.cold_solver if cold else self.solver
+        solver = self.solvers[kind]
         res = solver(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg,
                      ubg=self.ubg, lam_g0=lam_g0, lam_x0=lam_x0)
         st = solver.stats()
@@ -281,7 +284,7 @@ class MultipleShootingNLP:
         converged = bool(st.get("success", False)) or status in (
             "Solve_Succeeded", "Solved_To_Acceptable_Level")
         iters = int(st.get("iter_count", -1))
-        capped = iters >= (self._cold_max_iter if cold else self._max_iter)
+        capped = iters >= self.max_iters[kind]
         self.last_violation = viol
         if finite and converged:
             outcome = "converged"

@@ -1,0 +1,138 @@
+"""Benchmark of the discrete-force swing-up MPC (issue 3): solvers and discrete-force strategies.
+
+For each configuration, the controller built from the *identified* cart-pendulum runs the 20
+random starts of issue 3 (seed 0) on the true plant; the table reports success, time to upright,
+track used, fallbacks, and the per-step solve time over all episodes (wall clock and CPU time of
+the calling thread; the CPU time is not inflated when other processes share the cores).  The
+default configuration is also run with +-10 % plant mismatch and with N(0, 0.01^2) measurement
+noise.  Prints a markdown table and writes ``benchmarks/results/mpc.json``.
+
+    python benchmarks/bench_mpc.py                 # everything (about 5 minutes on 2 cores)
+    python benchmarks/bench_mpc.py --episodes 3    # quick look
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lsindy_cas import systems
+from lsindy_cas.mpc import SwingUpMPC
+from lsindy_cas.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
+
+CONFIGS = {
+    # name: (SwingUpMPC options, what it shows)
+    "sqp+lookahead": ({"solver": "sqp", "rounding": "lookahead"}, "default"),
+    "sqp+sur": ({"solver": "sqp", "rounding": "sur"},
+                "POC weights, sum-up rounding carried across steps"),
+    "sqp+continuous+nearest": ({"solver": "sqp", "relaxation": "continuous",
+                                "rounding": "nearest"},
+                               "plain rounding of a continuous solution"),
+    "sqp+nearest": ({"solver": "sqp", "rounding": "nearest"},
+                    "POC weights, largest weight (no memory)"),
+    "sqp-gn+lookahead": ({"solver": "sqp-gn", "rounding": "lookahead"}, "Gauss-Newton SQP"),
+    "fatrop+lookahead": ({"solver": "fatrop", "rounding": "lookahead"}, "fatrop"),
+    "ipopt+lookahead": ({"solver": "ipopt", "rounding": "lookahead"}, "IPOPT"),
+}
+ROBUSTNESS = ("mismatch", "noise")
+
+
+def _pct(a, q):
+    return float(np.percentile(a, q)) if len(a) else float("nan")
+
+
+def run_config(model, options, starts, scenario="nominal", seed=0, noise_std=0.01):
+    """Run all starts with one controller; returns a JSON-ready dict of metrics."""
+    t0 = time.perf_counter()
+    ctrl = SwingUpMPC(model, **options)
+    build = time.perf_counter() - t0
+    rng = np.random.default_rng([seed, 7])
+    eps = []
+    for x0 in starts:
+        if scenario == "mismatch":
+            f = 1.0 + 0.1 * rng.choice([-1.0, 1.0], size=3)
+            plant = Plant(systems.cart_pendulum(mc=f[0], mp=0.1 * f[1], L=f[2]), ctrl.dt)
+        else:
+            plant = Plant(systems.cart_pendulum(), ctrl.dt)
+        eps.append(run_episode(ctrl, plant, x0, noise_std=noise_std if scenario == "noise"
+                               else 0.0, rng=rng))
+    st = ctrl.stats
+    wall = np.asarray(st.solve_times) * 1e3
+    cpu = np.asarray(st.solve_cpu_times) * 1e3
+    step = np.asarray(st.step_times) * 1e3
+    t_up = np.array([e.time_to_upright for e in eps])
+    return {
+        "scenario": scenario, "options": options, "episodes": len(eps),
+        "success_rate": float(np.mean([e.success for e in eps])),
+        "median_time_to_upright": float(np.median(t_up)),
+        "max_track_used": float(max(e.track_used for e in eps)),
+        "all_forces_in_set": bool(all(np.isin(e.forces, ctrl.levels).all() for e in eps)),
+        "n_solves": st.n_solves, "n_failures": st.n_failures, "n_inexact": st.n_inexact,
+        "solve_ms": {"median": _pct(wall, 50), "p99": _pct(wall, 99), "max": float(wall.max())},
+        "solve_cpu_ms": {"median": _pct(cpu, 50), "p99": _pct(cpu, 99)},
+        "step_ms": {"median": _pct(step, 50), "p99": _pct(step, 99)},
+        "iterations_median": _pct(st.iterations, 50), "build_s": round(build, 3),
+        "failed_starts": [e.x0.round(4).tolist() for e in eps if not e.success],
+    }
+
+
+def table(rows):
+    head = ("| configuration | scenario | success | median t_up (s) | max abs x (m) | fallbacks "
+            "| solve median (ms) | solve p99 (ms) | CPU p99 (ms) | step median (ms) |")
+    lines = [head, "|" + "---|" * 10]
+    for name, r in rows:
+        lines.append(
+            f"| {name} | {r['scenario']} | {100 * r['success_rate']:.0f} % | "
+            f"{r['median_time_to_upright']:.2f} | {r['max_track_used']:.2f} | "
+            f"{r['n_failures']}/{r['n_solves']} | {r['solve_ms']['median']:.2f} | "
+            f"{r['solve_ms']['p99']:.1f} | {r['solve_cpu_ms']['p99']:.1f} | "
+            f"{r['step_ms']['median']:.2f} |")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--configs", default=",".join(CONFIGS),
+                        help="comma-separated subset of " + ", ".join(CONFIGS))
+    parser.add_argument("--json", default=str(Path(__file__).parent / "results" / "mpc.json"))
+    args = parser.parse_args(argv)
+    names = [c for c in args.configs.split(",") if c]
+    unknown = set(names) - set(CONFIGS)
+    if unknown:
+        parser.error(f"unknown configurations {sorted(unknown)}")
+    model, _ = identify_cart_pendulum()
+    starts = random_starts(args.episodes, args.seed)
+    load_before = os.getloadavg()
+    rows = []
+    for name in names:
+        rows.append((name, run_config(model, CONFIGS[name][0], starts, seed=args.seed)))
+        print(table(rows[-1:]).splitlines()[-1], flush=True)
+    if "sqp+lookahead" in names:
+        for scenario in ROBUSTNESS:
+            rows.append(("sqp+lookahead", run_config(model, CONFIGS["sqp+lookahead"][0],
+                                                     starts, scenario, seed=args.seed)))
+            print(table(rows[-1:]).splitlines()[-1], flush=True)
+    print()
+    print(table(rows))
+    report = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
+                          "loadavg_before": load_before, "loadavg_after": os.getloadavg()},
+              "episodes": args.episodes, "seed": args.seed,
+              "criteria": "issue 3: |wrap(theta - pi)| < 0.1 rad and |theta_dot| < 0.5 rad/s "
+                          "over the last 3 s of 10 s, |x| <= 2 m throughout",
+              "results": [dict(r, configuration=n, note=CONFIGS[n][1]) for n, r in rows]}
+    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.json).write_text(json.dumps(report, indent=2))
+    print(f"\nwritten to {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
