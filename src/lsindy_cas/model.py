@@ -13,14 +13,20 @@ from . import __version__
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from .data import Trajectory
+from .diagnostics import Significant, constant_force_trap, diagnose
 from .legendre import legendre
 from .library import Library
 from .mechanics import EulerLagrange, simulate_ode
-from .search import _normalise, best_subset
+from .search import _normalise
+from .selection import select
+from .smoothing import smooth
+from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
+    row_gradients, sample_weights
 
 __all__ = ["LagrangianSINDy"]
 
 _FORMS = ("auto", "derivative", "integral")
+_SMOOTHING = ("auto", "none")
 
 
 def _check_trajectories(trajectories, coords, what="trajectories") -> list:
@@ -45,16 +51,24 @@ class LagrangianSINDy:
     ----------
     library : Library
         Candidate terms Θ.
-    n_terms : int
-        Number of terms k in the energy (paper's k).
+    n_terms : int, optional
+        Number of terms k in the energy (paper's k).  None (default): chosen from the data on
+        held-out trajectories or stretches (:mod:`lsindy_cas.selection`).
     prior : sequence of str
         Terms known to be in the energy (e.g. those of the constituent simple systems); forced into
-        every support and required to come out non-zero.
+        every support and required to come out significantly non-zero.
     form : {"auto", "derivative", "integral"}
         Energy-balance form; "auto" uses the derivative form when every trajectory carries exact
-        accelerations and the integral form otherwise.
-    window : int
-        Integral form: window length in samples.
+        accelerations and the integral (weak) form otherwise.
+    window : int, optional
+        Integral form: None (default) stacks every window of every run; an integer uses windows of
+        that many samples.
+    smoothing : {"auto", "none"}
+        Integral form: "auto" smooths the measured states with a strength chosen from the data
+        (:func:`lsindy_cas.smoothing.smooth`); "none" uses them as measured.  Either way the noise
+        level is estimated and the coefficients are corrected for noise in the regressors.
+    max_terms : int, optional
+        Automatic k: the largest k tried.
 
     Attributes (after ``fit``)
     --------------------------
@@ -62,44 +76,73 @@ class LagrangianSINDy:
     coef_ : array (p,)            energy coefficients ξ (H = Θ ξ)
     lagrangian_coef_ : array (p,) Lagrangian coefficients ξ_L (eq. 7)
     support_ : tuple of int
+    n_terms_ : int                the k used (chosen or given)
     hamiltonian_, lagrangian_ : sympy.Expr
     actuated_ : list of str       coordinates that carried an applied force in the data
     search_ : SearchResult        ranking and diagnostics of the support search
+    selection_ : Selection        every k tried and its held-out error
     passive_ : bool               whether the passive (null-space + scale) scheme was used
+    smoothing_ : list of Smoothed or None
+    diagnostics_ : Diagnostics    near ties, null space, traps, warnings (print it)
     """
 
-    def __init__(self, library: Library, *, n_terms: int, prior=(), form: str = "auto",
-                 window: int = 10):
+    def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
+                 window: int | None = None, smoothing: str = "auto", max_terms: int | None = None):
         self.library = library
         self.n_terms = n_terms
         self.prior = prior
         self.form = form
         self.window = window
+        self.smoothing = smoothing
+        self.max_terms = max_terms
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
         if not isinstance(self.library, Library):
             raise TypeError(f"library must be a Library, got {type(self.library).__name__}")
-        k = self.n_terms
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-            raise TypeError(f"n_terms must be an integer, got {type(k).__name__}")
-        if not 1 <= k <= len(self.library):
-            raise ValueError(f"n_terms = {k} must be between 1 and the library size {len(self.library)}")
         prior = [self.prior] if isinstance(self.prior, str) else list(self.prior)
         forced = [self.library.index(t, what="prior term") for t in prior]
-        if len(set(forced)) > k:
-            raise ValueError(f"{len(set(forced))} prior terms do not fit in n_terms = {k}")
+        for name, k in (("n_terms", self.n_terms), ("max_terms", self.max_terms)):
+            if k is None:
+                continue
+            if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+                raise TypeError(f"{name} must be an integer or None, got {type(k).__name__}")
+            if not 1 <= k <= len(self.library):
+                raise ValueError(f"{name} = {k} must be between 1 and the library size "
+                                 f"{len(self.library)}")
+            if len(set(forced)) > k:
+                raise ValueError(f"{len(set(forced))} prior terms do not fit in {name} = {k}")
         if self.form not in _FORMS:
             raise ValueError(f"form must be one of {_FORMS}, got {self.form!r}")
-        return forced
+        if self.smoothing not in _SMOOTHING:
+            raise ValueError(f"smoothing must be one of {_SMOOTHING}, got {self.smoothing!r}")
+        if self.window is not None and (isinstance(self.window, bool)
+                                        or not isinstance(self.window, (int, np.integer))
+                                        or self.window < 1):
+            raise ValueError(f"window must be None or a positive integer, got {self.window!r}")
+        return sorted(set(forced))
 
-    def _balance(self, trajectories, passive=None):
-        form = self.form
-        if form == "auto":
-            form = "derivative" if all(tr.qdd is not None for tr in trajectories) else "integral"
-        if form == "derivative":
+    def _form(self, trajectories) -> str:
+        if self.form == "auto":
+            return "derivative" if all(tr.qdd is not None for tr in trajectories) else "integral"
+        return self.form
+
+    def _balance(self, trajectories, passive=None, weights=None):
+        if self._form(trajectories) == "derivative":
             return derivative_form(self.library, trajectories, passive=passive)
-        return integral_form(self.library, trajectories, window=self.window, passive=passive)
+        return integral_form(self.library, trajectories, window=self.window, passive=passive,
+                             weights=weights)
+
+    def _prepare(self, trajectories):
+        """States for the balance and their noise variance per row (integral form), or as given."""
+        if self._form(trajectories) == "derivative":
+            return trajectories, None, None
+        lam = None if self.smoothing == "auto" else 0.0
+        smoothed = [smooth(tr, lam=lam) for tr in trajectories]
+        states = [s.trajectory for s in smoothed] if self.smoothing == "auto" else trajectories
+        var = np.vstack([np.broadcast_to(s.error ** 2 if self.smoothing == "auto" else s.noise ** 2,
+                                         (s.raw.n_samples, len(s.noise))) for s in smoothed])
+        return states, var, smoothed
 
     def fit(self, trajectories, scale_trajectories=None, passive=None) -> "LagrangianSINDy":
         """Identify the energy, Lagrangian and equations of motion.
@@ -115,32 +158,68 @@ class LagrangianSINDy:
             training data carry no power.
         """
         forced = self._validate()
-        coords = self.library.coords.names
+        lib = self.library
+        coords = lib.coords.names
         trajectories = _check_trajectories(trajectories, coords)
-        bal = self._balance(trajectories, passive=passive)
+        scale_list = (None if scale_trajectories is None else
+                      _check_trajectories(scale_trajectories, coords, "scale_trajectories"))
+        states, state_var, self.smoothing_ = self._prepare(trajectories)
+        bal = self._balance(states, passive=passive)
         scale_system = None
         if bal.passive:
-            if scale_trajectories is None:
+            if scale_list is None:
                 raise ValueError("the training data are passive (no power fed in), which fixes the "
                                  "energy only up to a factor: pass scale_trajectories, a short "
                                  "actuated record (paper eq. 8)")
-            scale = self._balance(_check_trajectories(scale_trajectories, coords,
-                                                      "scale_trajectories"), passive=False)
+            scale_states = self._prepare(scale_list)[0]
+            scale = self._balance(scale_states, passive=False)
             if not np.any(scale.b):
                 raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
             scale_system = (scale.A, scale.b)
-        _, norms = _normalise(bal.A)
-        if bal.passive:       # judge term shares on the actuated record, where they are non-zero
-            norms = _normalise(scale_system[0])[1]
-        admissible = Admissibility(self.library, bal.X, forced, norms)
-        self.search_ = best_subset(bal.A, bal.b, int(self.n_terms), forced, admissible=admissible,
-                                   D=bal.D if bal.passive else None, scale_system=scale_system)
+        self.trap_ = constant_force_trap(lib, trajectories, forced) if not bal.passive else None
+        excluded = [] if self.trap_ is None else self.trap_.excluded
+        admissible = self._admissibility(bal, forced, scale_system, excluded)
+        noise = (noise_model(bal, state_var, self.smoothing_)
+                 if state_var is not None and bal.centred else None)
+        sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
+                     scale_system=scale_system, max_terms=self.max_terms, noise=noise)
+        coef = sel.coef
+        if state_var is not None and bal.centred:
+            coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
+                                                      scale_system, excluded, row_gradients(bal))
+        self.selection_ = sel
+        self.search_ = sel.search
+        self.n_terms_ = sel.k
         self.passive_ = bal.passive
         self.form_ = bal.form
         self.actuated_ = [c for c in coords if any(c in tr.actuated for tr in
-                                                   trajectories + _maybe_list(scale_trajectories))]
-        self._set_coefficients(self.search_.coef, X=bal.X)
+                                                   trajectories + (scale_list or []))]
+        self._set_coefficients(coef, X=bal.X)
+        self.diagnostics_ = diagnose(self, bal, trajectories, scale_system, admissible)
         return self
+
+    def _admissibility(self, bal, forced, scale_system, excluded):
+        _, norms = _normalise(bal.A)
+        if bal.passive:       # judge term shares on the actuated record, where they are non-zero
+            norms = _normalise(scale_system[0])[1]
+        return Significant(Admissibility(self.library, bal.X, forced, norms), bal, scale_system,
+                           excluded)
+
+    def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
+        """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
+        weighted balance (same k), and correct the coefficients for regressor noise."""
+        coef, support, sel_w, changed = sel.coef, sel.support, sel, True
+        sizes = np.cumsum([tr.n_samples for tr in states])[:-1]
+        for it in range(3):
+            w = sample_weights(energy_variance(grads, coef, state_var))
+            bal_w = self._balance(states, passive=passive, weights=np.split(w, sizes))
+            if changed and it < 2:      # re-select on the weighted balance (same k)
+                adm = self._admissibility(bal_w, forced, scale_system, excluded)
+                sel_w = select(bal_w, forced, n_terms=sel.k, scale_system=scale_system, admissible=adm)
+                changed, support = sel_w.support != support, sel_w.support
+            coef = _corrected(bal_w, grads, w, state_var, support, scale_system)
+        sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
+        return coef, bal_w, sel_w, adm
 
     def _set_coefficients(self, coef, X=None):
         lib = self.library
@@ -241,10 +320,16 @@ class LagrangianSINDy:
         return model
 
 
-def _maybe_list(x) -> list:
-    if x is None:
-        return []
-    return [x] if isinstance(x, Trajectory) else list(x)
+def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
+    """Coefficients (p,) on ``support`` with the regressor-noise Gram removed."""
+    S = list(support)
+    N = noise_gram(grads, state_var, S, w)
+    coef = np.zeros(bal.A.shape[1])
+    if bal.b is not None:
+        coef[S] = corrected_coef(bal.A, bal.b, S, N)
+        return coef
+    coef[S] = corrected_null(bal.A, S, N, scale_system)
+    return coef
 
 
 def _combine(lib: Library, coef) -> sp.Expr:

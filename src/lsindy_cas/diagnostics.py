@@ -1,0 +1,359 @@
+"""What a user should know about an identified energy: ties, null space, traps, in plain words.
+
+:func:`diagnose` builds a :class:`Diagnostics` report after a fit (``model.diagnostics_``; the CLI
+prints it).  Every test compares dimensionless quantities — score ratios, held-out error fractions,
+t-statistics, singular values of column-normalised matrices — so nothing depends on units.
+
+Known traps, detected from the structure of the data rather than from the fit:
+
+- **constant input** — when every run is driven by the same constant force u on coordinate x,
+  E − u·x is conserved, so E + c·(E − u·x) fits the balance for every c: a constant force is
+  indistinguishable from a linear potential.  The pure term x (if in the library) is kept out of
+  the search, and the report says so;
+- **several conserved quantities (passive data)** — E and, e.g., an angular momentum are both
+  conserved, so the null space of the passive balance holds both; only the actuated scale trial
+  tells them apart.  They are counted among the supports the passive search found (nearly) as
+  conserved as the winner, keeping those whose state gradients are independent of the energy's
+  and of each other at the samples (functions of one conserved quantity are not new ones).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .balance import EnergyBalance
+from .uncertainty import T_CRIT, Jackknife
+
+__all__ = ["Diagnostics", "Significant", "ConstantForceTrap", "constant_force_trap", "diagnose",
+           "conserved_quantities", "NEAR_TIE"]
+
+NEAR_TIE = 2.0          # an admissible support within this factor of the winner's score is a near tie
+_NULL_FACTOR = 10.0     # see _null_dim
+_POOR_FIT = 0.5         # unexplained fraction of the work above which the data explain too little
+_NUMERICAL_ZERO = 1e-20  # passive scores (squared normalised singular values) this small are exact
+
+
+class Significant:
+    """Admissibility plus significance: ``(support, coef) -> (ok, reason)``.
+
+    A candidate passes when it avoids the ``excluded`` terms and terms linear in the velocities
+    (which cannot appear in an energy, see :mod:`lsindy_cas.legendre`), the physical test passes
+    (prior terms present, kinetic part positive definite), and every coefficient has |t| ≥ T_CRIT
+    in a delete-a-block jackknife (:class:`lsindy_cas.uncertainty.Jackknife`).
+    """
+
+    def __init__(self, physical, bal: EnergyBalance, scale_system=None, excluded=()):
+        self.physical = physical
+        self.bal = bal
+        self.scale_system = scale_system
+        self.excluded = set(int(j) for j in excluded)
+        self._jack = None
+
+    def __call__(self, support, coef):
+        if self.excluded & set(support):
+            return False, ("uses a coordinate whose coefficient a constant input leaves "
+                           "undetermined (E and E − u·x fit equally)")
+        lib = self.physical.library
+        if any(lib.velocity_degree(j) == 1 for j in support):
+            return False, ("has a term linear in the velocities, which no energy has (it cancels "
+                           "in H = p·q̇ − L): a momentum-like conserved quantity, not the energy")
+        ok, why = self.physical(support, coef)
+        if not ok:
+            return ok, why
+        S = list(support)
+        if self._jack is None:
+            self._jack = Jackknife(self.bal)
+        t = self._jack.t(S, coef[S], scale_system=self.scale_system)
+        if np.any(t < T_CRIT):
+            return False, f"a term is not significantly non-zero (jackknife |t| < {T_CRIT})"
+        return True, "admissible"
+
+
+@dataclass
+class ConstantForceTrap:
+    """Every run is driven by the same constant generalized forces ``u`` (n,)."""
+
+    coords: list
+    u: np.ndarray
+    excluded: list
+    in_library: list
+
+
+def constant_force_trap(library, trajectories, forced=()) -> ConstantForceTrap | None:
+    """Detect the constant-input trap; None when the forces vary (or are zero)."""
+    Q = np.vstack([tr.Q for tr in trajectories])
+    if not np.any(Q) or np.any(np.ptp(Q, axis=0) != 0):
+        return None
+    u = Q[0].copy()
+    names = library.coords.names
+    coords = [c for c, v in zip(names, u) if v != 0]
+    excluded, in_lib = [], []
+    for c in coords:
+        try:
+            j = library.index(c)
+        except ValueError:
+            continue
+        in_lib.append(c)
+        if j not in set(forced):
+            excluded.append(j)
+    return ConstantForceTrap(coords, u, excluded, in_lib)
+
+
+@dataclass
+class Diagnostics:
+    """Readable report on an identification (``str()`` gives the text the CLI prints).
+
+    Attributes
+    ----------
+    near_ties : list of (terms, ratio, admissible, reason)
+        Runners-up with their score / the winner's score (≥ 1 unless rejected).
+    null_dim : int
+        Directions on the chosen support that the data do not determine (driven: 0 is right;
+        passive: 1 is the energy itself).
+    held_out_error : float
+        Fraction of the held-out work (or term changes) the model does not explain.
+    chi : float
+        Residual in units of what the estimated noise explains (≈ 1: fits to within the noise;
+        nan without a noise estimate).
+    k_path : list of (k, held-out error, χ)
+    noise : dict
+        Estimated noise std per state column (integral form), from the smoother.
+    conserved : list of str
+        Passive data: conserved quantities found besides the energy.
+    traps : list of str
+        Known traps, in plain words.
+    warnings : list of str
+        Everything that makes the result doubtful; empty on well-posed data.
+    """
+
+    near_ties: list = field(default_factory=list)
+    null_dim: int = 0
+    held_out_error: float = 0.0
+    chi: float = float("nan")
+    k_path: list = field(default_factory=list)
+    k_automatic: bool = False
+    noise: dict = field(default_factory=dict)
+    conserved: list = field(default_factory=list)
+    traps: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        """True when nothing needs the user's attention."""
+        return not self.traps and not self.warnings
+
+    def to_dict(self) -> dict:
+        return {"near_ties": [{"terms": t, "score_ratio": r, "admissible": a, "reason": why}
+                              for t, r, a, why in self.near_ties],
+                "null_dim": self.null_dim, "held_out_error": self.held_out_error,
+                "chi": self.chi if np.isfinite(self.chi) else None,
+                "k_path": [{"k": k, "held_out_error": e, "chi": c if np.isfinite(c) else None}
+                           for k, e, c in self.k_path],
+                "k_automatic": self.k_automatic, "noise": self.noise,
+                "conserved": self.conserved, "traps": self.traps, "warnings": self.warnings}
+
+    def __str__(self) -> str:
+        lines = ["diagnostics:"]
+        if self.k_path:
+            path = ", ".join(f"k={k}: {e:.1e}" + (f" (χ {c:.3g})" if np.isfinite(c) else "")
+                             for k, e, c in self.k_path)
+            lines.append(f"  held-out error by number of terms ({'chosen automatically' if self.k_automatic else 'k given'}): {path}")
+        lines.append(f"  held-out error of the model: {self.held_out_error:.2e} (fraction not explained)")
+        if np.isfinite(self.chi):
+            lines.append(f"  residual / expected noise: {self.chi:.3g} (≈ 1: fits to within the noise)")
+        lines.append(f"  undetermined directions on the support (near-null space): {self.null_dim}")
+        if self.noise:
+            lines.append("  estimated noise std: " + ", ".join(f"{k} {v:.1e}" for k, v in self.noise.items()))
+        ties = [t for t in self.near_ties if t[1] <= NEAR_TIE and t[2]]
+        if ties:
+            lines.append("  nearly tied supports (score / winner's):")
+            lines += [f"    {r:.3g}×  {' + '.join(terms)}" for terms, r, _, _ in ties]
+        else:
+            lines.append(f"  no admissible support within {NEAR_TIE:g}× of the winner's score")
+        for t in self.traps:
+            lines.append(f"  TRAP: {t}")
+        for w in self.warnings:
+            lines.append(f"  WARNING: {w}")
+        if self.ok:
+            lines.append("  no traps or warnings: the data identify this energy")
+        return "\n".join(lines)
+
+
+def _null_dim(bal: EnergyBalance, S, score: float) -> int:
+    """Directions of the normalised coefficients whose standard error exceeds 1/√10 of a unit.
+
+    With column-normalised A_S and ‖b‖ = 1 the residual per row has variance ≈ score/m, so the
+    coefficients along singular direction j scatter by √(score/m)/σ_j; undetermined when
+    σ_j² ≤ 10·score/m.  Passive: relative to the smallest singular value (the energy itself).
+    """
+    AS = bal.A[:, list(S)]
+    s = np.linalg.norm(AS, axis=0)
+    s[s == 0] = 1.0
+    sv = np.linalg.svd(AS / s, compute_uv=False)
+    if bal.passive:
+        return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(sv[-1] ** 2, 1e-300)))
+    return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(score, 1e-300) / len(AS)))
+
+
+def _near_ties(model, bal, admissible, n: int = 5) -> list:
+    res, lib = model.search_, model.library
+    out, seen = [], {tuple(res.support)}
+    base = max(res.score, 1e-300)
+    for c in res.candidates:
+        if tuple(c.support) in seen or len(out) >= n:
+            continue
+        seen.add(tuple(c.support))
+        ok, why = c.admissible, c.reason
+        if ok is None and admissible is not None and c.score <= NEAR_TIE * base:
+            coef = _coef(bal, c.support)
+            ok, why = (False, "no coefficients") if coef is None else admissible(c.support, coef)
+        out.append(([lib.names[j] for j in c.support], float(c.score / base), bool(ok), why))
+    return out
+
+
+def _coef(bal, S):
+    S = list(S)
+    coef = np.zeros(bal.A.shape[1])
+    if bal.b is None:
+        return None
+    coef[S] = np.linalg.lstsq(bal.A[:, S], bal.b, rcond=None)[0]
+    return coef
+
+
+def conserved_quantities(library, bal: EnergyBalance, candidates, energy_coef, floor: float):
+    """Conserved quantities besides the energy among the passive search's near-null supports.
+
+    Parameters
+    ----------
+    library : Library
+    bal : EnergyBalance
+        The passive balance.
+    candidates : list of Candidate
+        Supports visited by the search (with their passive scores).
+    energy_coef : array (p,)
+        The identified energy.
+    floor : float
+        Candidates scoring at most this are conserved on the data.
+
+    Returns
+    -------
+    list of (support, eta)
+        Quantities Θη functionally independent of the energy and of each other: at the samples
+        their state gradients are not linearly dependent on those already found.
+    """
+    grads = bal.D.reshape(len(bal.X), bal.X.shape[1], -1)
+    basis = [_gradient_field(grads, np.flatnonzero(energy_coef), energy_coef[energy_coef != 0])]
+    found = []
+    for c in sorted(candidates, key=lambda c: c.score):
+        if c.score > floor:
+            break
+        S = list(c.support)
+        A = bal.A[:, S]
+        s = np.linalg.norm(A, axis=0)
+        s[s == 0] = 1.0
+        eta = np.linalg.svd(A / s, full_matrices=False)[2][-1] / s
+        g = _gradient_field(grads, S, eta)
+        if _independent(basis + [g]):
+            basis.append(g)
+            found.append((tuple(S), eta))
+    return found
+
+
+def _gradient_field(grads, S, eta) -> np.ndarray:
+    """∇I at every sample: (N, 2n)."""
+    return np.einsum("nkj,j->nk", grads[:, :, list(S)], np.asarray(eta, float))
+
+
+def _independent(fields) -> bool:
+    """Are the gradient fields linearly independent at (most) samples?  (N, 2n) each."""
+    F = np.stack(fields, axis=2)                                   # (N, 2n, r)
+    F = F / np.maximum(np.linalg.norm(F, axis=1, keepdims=True), 1e-300)
+    if F.shape[2] > F.shape[1]:
+        return False
+    sv = np.linalg.svd(F, compute_uv=False)                        # (N, r)
+    return bool(np.median(sv[:, -1]) > 1e-3)
+
+
+def diagnose(model, bal: EnergyBalance, trajectories, scale_system=None, admissible=None) -> Diagnostics:
+    """Build the report for a fitted :class:`~lsindy_cas.model.LagrangianSINDy`."""
+    lib, sel = model.library, model.selection_
+    d = Diagnostics()
+    S = model.support_
+    step = next((s for s in sel.steps if s.k == sel.k), sel.steps[-1])
+    d.held_out_error = float(step.cv)
+    d.chi = float(step.chi)
+    d.k_automatic = bool(sel.automatic)
+    d.k_path = [(s.k, float(s.cv), float(s.chi)) for s in sel.steps]
+    d.null_dim = _null_dim(bal, S, model.search_.score)
+    d.near_ties = _near_ties(model, bal, admissible)
+    if model.smoothing_:
+        names = list(lib.coords.names) + [c + "_dot" for c in lib.coords.names]
+        noise = np.sqrt(np.mean([s.noise ** 2 for s in model.smoothing_], axis=0))
+        d.noise = {n: float(v) for n, v in zip(names, noise)}
+    trap = getattr(model, "trap_", None)
+    if trap is not None:
+        d.traps.append(_constant_force_text(lib, trap, S))
+    if bal.passive:
+        _passive_report(d, model, bal)
+    _warnings(d, model, bal)
+    return d
+
+
+def _constant_force_text(lib, trap: ConstantForceTrap, S) -> str:
+    parts = []
+    for c, u in zip(lib.coords.names, trap.u):
+        if u == 0:
+            continue
+        j = lib.coords.names.index(c)
+        cyclic = not any(_depends(lib.exprs[k], lib.coords.q_sym[j]) for k in S)
+        if c in trap.in_library:
+            where = "cyclic (the energy does not depend on it)" if cyclic else "in the energy"
+            left = " — the term was left out of the search" if lib.index(c) in trap.excluded else ""
+            parts.append(f"input is constant (Q_{c} = {u:g}) and coordinate {c} is {where}: "
+                         f"E and E − u·{c} fit equally{left}; vary the input or drop {c}")
+        else:
+            parts.append(f"input is constant (Q_{c} = {u:g}): a constant force on {c} acts like a "
+                         f"potential −u·{c}, so E and E − u·{c} fit equally; {c} itself is not a "
+                         "library term, but over a short run other terms can imitate it — vary "
+                         "the input")
+    return "; ".join(parts)
+
+
+def _depends(expr, sym) -> bool:
+    return sym in expr.free_symbols
+
+
+def _passive_report(d: Diagnostics, model, bal):
+    lib, res = model.library, model.search_
+    floor = max(NEAR_TIE * res.score, _NUMERICAL_ZERO)
+    found = conserved_quantities(lib, bal, res.candidates, model.coef_, floor)
+    d.conserved = [_expression(lib, S, eta) for S, eta in found]
+    if d.conserved:
+        d.traps.append(f"the passive data conserve {1 + len(found)} quantities (energy and "
+                       f"{'; '.join(d.conserved)}); a scale trial is needed to tell them apart "
+                       "(the actuated record picked the energy)")
+
+
+def _expression(lib, S, eta) -> str:
+    """Readable I = Σ c_j θ_j, scaled to a largest coefficient of 1, round-off terms dropped."""
+    c = np.asarray(eta, float) / np.max(np.abs(eta))
+    parts = [f"{v:+.3g}·{lib.names[j]}" for j, v in zip(S, c) if abs(v) > 1e-6]
+    return " ".join(parts).lstrip("+")
+
+
+def _warnings(d: Diagnostics, model, bal):
+    score = model.search_.score
+    if not bal.passive and score > _POOR_FIT:
+        d.warnings.append(f"the data cannot identify the energy: the best model leaves "
+                          f"{100 * min(score, 1):.0f} % of the work fed in unexplained — the runs "
+                          "may barely move, the input may carry no information, or the library "
+                          "may lack the energy's terms")
+    extra = d.null_dim - (1 if bal.passive else 0)
+    if extra > 0:
+        d.warnings.append(f"the data cannot identify the energy uniquely: {extra} combination(s) "
+                          "of the chosen terms change the fit less than its residual does")
+    ties = [t for t in d.near_ties if t[2] and t[1] <= NEAR_TIE]
+    if ties:
+        d.warnings.append(f"{len(ties)} other admissible support(s) fit within {NEAR_TIE:g}× of the "
+                          "chosen one; more varied data would separate them")
