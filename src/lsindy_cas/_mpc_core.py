@@ -3,10 +3,13 @@
 :class:`DiscreteInputMPC` is a multiple-shooting MPC on any ``casadi.Function``
 ``ode(x, u) -> xdot`` whose actuated input may only take values from a finite set.  Each step
 solves a relaxation (partial outer convexification: one weight per admissible level, the weights
-summing to 1; or a continuous input) warm-started from the shifted previous solution, then rounds
-the first interval's relaxed decision to one admissible level, carrying the rounding error across
-steps (sum-up rounding, see :mod:`lsindy_cas._rounding`).  A failed or non-converged solve falls
-back to the shifted previous plan and is counted in :attr:`DiscreteInputMPC.stats`.
+summing to 1; or a continuous input) warm-started from the shifted previous solution, then turns
+the first interval's relaxed decision into one admissible level: by enumerating short discrete
+sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas._lookahead`, the default), by
+sum-up rounding with the rounding error carried across steps, or by plain rounding
+(:mod:`lsindy_cas._rounding`).  A failed or non-converged solve falls back to the shifted
+previous plan, is counted in :attr:`DiscreteInputMPC.stats`, and the next step re-solves with the
+robust solver.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ class MPCStats:
         previous plan instead.
     n_inexact : int
         Solves stopped by the iteration cap whose iterate satisfied every constraint (dynamics,
-        bounds) and was applied (only with ``accept_inexact=True``).
+        bounds to 1e-6); applied when ``accept_inexact=True``, else counted as failures too.
     solve_times : list of float
         Wall-clock seconds per solve (the solver call only).
     solve_cpu_times : list of float
@@ -127,7 +130,8 @@ class DiscreteInputMPC:
     horizon : int
         Number of control intervals predicted.
     state_lb, state_ub : array_like, shape (n_state,), optional
-        Bounds imposed on every predicted state after the first.
+        Bounds on the predicted states after the first, softened by a slack with an exact
+        penalty so that a solve is never infeasible.
     input_weight : float
         Weight of the normalised input penalty.
     n_substeps : int
@@ -138,9 +142,13 @@ class DiscreteInputMPC:
         for the comparison that chose the default).
     relaxation : {"poc", "continuous"}
         Outer-convexified weights per level, or a continuous input in ``[min, max]``.
-    rounding : {"sur", "nearest"}
-        Sum-up rounding carried across steps, or plain rounding to the largest weight /
-        nearest level.
+    rounding : {"lookahead", "sur", "nearest"}
+        How the applied level is chosen: lookahead over all discrete sequences of ``depth``
+        intervals (first move among the levels adjacent to the relaxed first input), sum-up
+        rounding carried across steps, or plain rounding to the largest weight (= the
+        nearest level for the continuous relaxation).
+    depth : int
+        Lookahead depth in control intervals (``n_levels**depth`` sequences).
     max_iter : int
         Iteration cap per warm-started solve.  The first solve of an episode (from a cold
         guess) and recovery solves (see ``recover_after``) use IPOPT with

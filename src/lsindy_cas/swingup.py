@@ -111,7 +111,27 @@ def evaluate(t, X, *, upright=np.pi, cart=0, pole=1, track_limit=2.0, t_end=None
 
 @dataclass
 class Episode:
-    """One closed-loop run: fine-grained plant states, applied forces and metrics."""
+    """One closed-loop run: fine-grained plant states, applied forces and metrics.
+
+    Attributes
+    ----------
+    x0 : ndarray, shape (4,)
+        Initial state (plant order).
+    t : ndarray, shape (n_samples,)
+        Times of ``X`` (s), ``dt / n_out`` apart.
+    X : ndarray, shape (n_samples, 4)
+        True plant states ``[q, q_dot]`` in the order of ``coords``.
+    forces : ndarray, shape (n_steps,)
+        Applied forces (N), one per control period.
+    success, time_to_upright, track_used
+        See :func:`evaluate`.
+    n_failures : int
+        Fallbacks to the previous plan during the episode.
+    coords : list of str
+        Plant coordinate names.
+    solve_times : list of float
+        Solver wall-clock seconds per step.
+    """
 
     x0: np.ndarray
     t: np.ndarray
@@ -330,8 +350,10 @@ def add_swingup_arguments(parser):
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--scenarios", default=",".join(SCENARIOS),
                         help="comma-separated subset of nominal,mismatch,noise (default all)")
-    parser.add_argument("--solver", default=None, help="fatrop (default), ipopt or sqp-hpipm")
-    parser.add_argument("--rounding", default=None, help="lookahead (default), sur or nearest")
+    parser.add_argument("--solver", default=None,
+                        help="sqp (default), sqp-gn, fatrop or ipopt (warm-started steps)")
+    parser.add_argument("--rounding", default=None,
+                        help="how the applied force is chosen: lookahead (default), sur or nearest")
     parser.add_argument("--json", metavar="OUT.json", help="write the metrics as JSON")
     parser.add_argument("--out", metavar="DIR", help="write the Fig. 5 analogue (PNG) here")
     return parser
