@@ -69,9 +69,13 @@ def _identify(args) -> int:
     scale = load_trajectories(args.scale, coords) if args.scale else None
     if args.passive and scale is None:
         raise ValueError("--passive needs --scale TRAJ... (a short actuated record, paper eq. 8)")
+    if args.terms is not None and args.terms < 1:
+        raise ValueError(f"--terms must be a positive integer, got {args.terms}")
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=_split(args.prior), form=args.form)
     model.fit(trajs, scale, passive=True if args.passive else None)
     print(model)
+    print()
+    print(model.diagnostics_)
     if args.json:
         model.save(args.json)
         print(f"model written to {args.json}")
@@ -197,7 +201,9 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--features", required=True,
                        help='feature expressions, comma-separated ("cos(theta),theta_dot,x_dot")')
     ident.add_argument("--degree", type=int, default=2, help="highest product degree (default 2)")
-    ident.add_argument("--terms", type=int, required=True, help="number of terms k in the energy")
+    ident.add_argument("--terms", type=int, default=None,
+                       help="number of terms k in the energy (default: chosen from the data on "
+                       "held-out runs or stretches)")
     ident.add_argument("--prior", default="", help='terms forced in ("theta_dot**2,cos(theta)")')
     ident.add_argument("--passive", action="store_true",
                        help="the training data are unforced: use the null-space scheme")

@@ -112,7 +112,9 @@ class Diagnostics:
         Directions on the chosen support that the data do not determine (driven: 0 is right;
         passive: 1 is the energy itself).
     held_out_error : float
-        Fraction of the held-out work (or term changes) the model does not explain.
+        Fraction of the held-out work (or term changes) the model does not explain, pooled over
+        the folds; ``held_out_fold_median`` is its median over the folds (robust to one fold that
+        extrapolates).
     chi : float
         Residual in units of what the estimated noise explains (≈ 1: fits to within the noise;
         nan without a noise estimate).
@@ -130,6 +132,7 @@ class Diagnostics:
     near_ties: list = field(default_factory=list)
     null_dim: int = 0
     held_out_error: float = 0.0
+    held_out_fold_median: float = 0.0
     chi: float = float("nan")
     k_path: list = field(default_factory=list)
     k_automatic: bool = False
@@ -156,21 +159,26 @@ class Diagnostics:
     def __str__(self) -> str:
         lines = ["diagnostics:"]
         if self.k_path:
+            how = "chosen automatically" if self.k_automatic else "k given"
             path = ", ".join(f"k={k}: {e:.1e}" + (f" (χ {c:.3g})" if np.isfinite(c) else "")
                              for k, e, c in self.k_path)
-            lines.append(f"  held-out error by number of terms ({'chosen automatically' if self.k_automatic else 'k given'}): {path}")
-        lines.append(f"  held-out error of the model: {self.held_out_error:.2e} (fraction not explained)")
+            lines.append(f"  held-out error by number of terms ({how}): {path}")
+        lines.append(f"  held-out error of the model: {self.held_out_error:.2e} "
+                     "(fraction not explained)")
         if np.isfinite(self.chi):
-            lines.append(f"  residual / expected noise: {self.chi:.3g} (≈ 1: fits to within the noise)")
-        lines.append(f"  undetermined directions on the support (near-null space): {self.null_dim}")
+            lines.append(f"  residual / expected noise: {self.chi:.3g} "
+                         "(≈ 1 means it fits to within the noise)")
+        lines.append("  undetermined directions on the support (near-null space): "
+                     f"{self.null_dim}")
         if self.noise:
-            lines.append("  estimated noise std: " + ", ".join(f"{k} {v:.1e}" for k, v in self.noise.items()))
-        ties = [t for t in self.near_ties if t[1] <= NEAR_TIE and t[2]]
-        if ties:
-            lines.append("  nearly tied supports (score / winner's):")
-            lines += [f"    {r:.3g}×  {' + '.join(terms)}" for terms, r, _, _ in ties]
-        else:
-            lines.append(f"  no admissible support within {NEAR_TIE:g}× of the winner's score")
+            lines.append("  estimated noise std: "
+                         + ", ".join(f"{k} {v:.1e}" for k, v in self.noise.items()))
+        if self.near_ties:
+            lines.append("  closest other supports (score / winner's):")
+            for terms, r, ok, why in self.near_ties[:3]:
+                tag = ("NEAR TIE, admissible" if r <= NEAR_TIE else "admissible") if ok else \
+                    f"rejected: {why}" if why else "not examined"
+                lines.append(f"    {r:8.3g}×  {' + '.join(terms)}  [{tag}]")
         for t in self.traps:
             lines.append(f"  TRAP: {t}")
         for w in self.warnings:
@@ -199,7 +207,7 @@ def _null_dim(bal: EnergyBalance, S, score: float) -> int:
 def _near_ties(model, bal, admissible, n: int = 5) -> list:
     res, lib = model.search_, model.library
     out, seen = [], {tuple(res.support)}
-    base = max(res.score, 1e-300)
+    base = max(res.score, _NUMERICAL_ZERO)     # exact fits tie at the level of round-off
     for c in res.candidates:
         if tuple(c.support) in seen or len(out) >= n:
             continue
@@ -208,7 +216,8 @@ def _near_ties(model, bal, admissible, n: int = 5) -> list:
         if ok is None and admissible is not None and c.score <= NEAR_TIE * base:
             coef = _coef(bal, c.support)
             ok, why = (False, "no coefficients") if coef is None else admissible(c.support, coef)
-        out.append(([lib.names[j] for j in c.support], float(c.score / base), bool(ok), why))
+        out.append(([lib.names[j] for j in c.support], float(max(c.score, _NUMERICAL_ZERO) / base),
+                    bool(ok), why))
     return out
 
 
@@ -282,6 +291,7 @@ def diagnose(model, bal: EnergyBalance, trajectories, scale_system=None, admissi
     S = model.support_
     step = next((s for s in sel.steps if s.k == sel.k), sel.steps[-1])
     d.held_out_error = float(step.cv)
+    d.held_out_fold_median = float(np.median(step.cv_folds))
     d.chi = float(step.chi)
     d.k_automatic = bool(sel.automatic)
     d.k_path = [(s.k, float(s.cv), float(s.chi)) for s in sel.steps]
@@ -344,11 +354,13 @@ def _expression(lib, S, eta) -> str:
 
 def _warnings(d: Diagnostics, model, bal):
     score = model.search_.score
-    if not bal.passive and score > _POOR_FIT:
+    held_out = d.held_out_fold_median
+    if not bal.passive and max(score, held_out) > _POOR_FIT:
         d.warnings.append(f"the data cannot identify the energy: the best model leaves "
-                          f"{100 * min(score, 1):.0f} % of the work fed in unexplained — the runs "
-                          "may barely move, the input may carry no information, or the library "
-                          "may lack the energy's terms")
+                          f"{100 * min(max(score, held_out), 1):.0f} % of the "
+                          f"{'held-out ' if held_out > score else ''}work unexplained — the runs "
+                          "may barely move, the noise may swamp them, or the library may lack the "
+                          "energy's terms")
     extra = d.null_dim - (1 if bal.passive else 0)
     if extra > 0:
         d.warnings.append(f"the data cannot identify the energy uniquely: {extra} combination(s) "

@@ -137,8 +137,7 @@ class LagrangianSINDy:
         """States for the balance and their noise variance per row (integral form), or as given."""
         if self._form(trajectories) == "derivative":
             return trajectories, None, None
-        lam = None if self.smoothing == "auto" else 0.0
-        smoothed = [smooth(tr, lam=lam) for tr in trajectories]
+        smoothed = [smooth(tr) for tr in trajectories]     # also estimates the noise for "none"
         states = [s.trajectory for s in smoothed] if self.smoothing == "auto" else trajectories
         var = np.vstack([np.broadcast_to(s.error ** 2 if self.smoothing == "auto" else s.noise ** 2,
                                          (s.raw.n_samples, len(s.noise))) for s in smoothed])
@@ -215,8 +214,13 @@ class LagrangianSINDy:
             bal_w = self._balance(states, passive=passive, weights=np.split(w, sizes))
             if changed and it < 2:      # re-select on the weighted balance (same k)
                 adm = self._admissibility(bal_w, forced, scale_system, excluded)
-                sel_w = select(bal_w, forced, n_terms=sel.k, scale_system=scale_system, admissible=adm)
-                changed, support = sel_w.support != support, sel_w.support
+                try:
+                    sel_w = select(bal_w, forced, n_terms=sel.k, scale_system=scale_system,
+                                   admissible=adm)
+                except ValueError:      # nothing passes with these weights: keep the support
+                    changed = False
+                else:
+                    changed, support = sel_w.support != support, sel_w.support
             coef = _corrected(bal_w, grads, w, state_var, support, scale_system)
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
         return coef, bal_w, sel_w, adm
@@ -268,7 +272,7 @@ class LagrangianSINDy:
     # ------------------------------------------------------------------ persistence
     def to_dict(self) -> dict:
         self._check_fitted()
-        return {
+        out = {
             "coords": self.coords_,
             "hamiltonian": str(self.hamiltonian_),
             "lagrangian": str(self.lagrangian_),
@@ -281,6 +285,11 @@ class LagrangianSINDy:
             "prior": [str(p) for p in ([self.prior] if isinstance(self.prior, str) else self.prior)],
             "lsindy_cas_version": __version__,
         }
+        diag = getattr(self, "diagnostics_", None)
+        diag = diag.to_dict() if diag is not None else getattr(self, "_loaded_diagnostics", None)
+        if diag is not None:           # the report of the fit travels with the model file
+            out["diagnostics"] = diag
+        return out
 
     def save(self, path) -> Path:
         """Write the model as JSON (atomically; the DESIGN.md model file)."""
@@ -316,6 +325,7 @@ class LagrangianSINDy:
             coef[lib.index(name, what=f"{path}: term")] = float(c)
         model = cls(lib, n_terms=max(1, len(terms)), prior=d.get("prior", ()))
         model.actuated_ = list(d.get("actuated", []))
+        model._loaded_diagnostics = d.get("diagnostics")
         model._set_coefficients(coef)
         return model
 

@@ -346,8 +346,9 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         if k - best.k >= 2 or (fits is not None and k > fits.k):
             break
     if best is None:
-        raise ValueError("no physically admissible model for any number of terms "
-                         f"{k_lo}..{k_hi} (" + "; ".join(reasons[:3]) + ")")
+        raise ValueError("the data cannot identify the energy: no physically admissible model "
+                         f"with significant terms for any number of terms {k_lo}..{k_hi} — vary "
+                         "the input, add runs or check the library (" + "; ".join(reasons[:3]) + ")")
     if fits is not None and fits.k < best.k:
         best = fits
     return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded)
