@@ -7,7 +7,7 @@ the calling thread; the CPU time is not inflated when other processes share the 
 default configuration is also run with +-10 % plant mismatch and with N(0, 0.01^2) measurement
 noise.  Prints a markdown table and writes ``benchmarks/results/mpc.json``.
 
-    python benchmarks/bench_mpc.py                 # everything (about 5 minutes on 2 cores)
+    python benchmarks/bench_mpc.py                 # everything (about 8 minutes on 2 cores)
     python benchmarks/bench_mpc.py --episodes 3    # quick look
 """
 
@@ -27,19 +27,26 @@ from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
 
 CONFIGS = {
-    # name: (SwingUpMPC options, what it shows)
-    "sqp+lookahead": ({"solver": "sqp", "rounding": "lookahead"}, "default"),
-    "sqp+sur": ({"solver": "sqp", "rounding": "sur"},
-                "POC weights, sum-up rounding carried across steps"),
+    # name: (SwingUpMPC options, what it shows); "default" is also run for robustness
+    "sqp+continuous+lookahead": ({"solver": "sqp", "relaxation": "continuous",
+                                  "rounding": "lookahead"}, "default"),
+    "sqp+poc+lookahead": ({"solver": "sqp", "relaxation": "poc", "rounding": "lookahead"},
+                          "POC weights, lookahead"),
+    "sqp+poc+sur": ({"solver": "sqp", "relaxation": "poc", "rounding": "sur"},
+                    "POC weights, sum-up rounding carried across steps"),
+    "sqp+poc+nearest": ({"solver": "sqp", "relaxation": "poc", "rounding": "nearest"},
+                        "POC weights, largest weight (no memory)"),
     "sqp+continuous+nearest": ({"solver": "sqp", "relaxation": "continuous",
                                 "rounding": "nearest"},
                                "plain rounding of a continuous solution"),
-    "sqp+nearest": ({"solver": "sqp", "rounding": "nearest"},
-                    "POC weights, largest weight (no memory)"),
-    "sqp-gn+lookahead": ({"solver": "sqp-gn", "rounding": "lookahead"}, "Gauss-Newton SQP"),
-    "fatrop+lookahead": ({"solver": "fatrop", "rounding": "lookahead"}, "fatrop"),
-    "ipopt+lookahead": ({"solver": "ipopt", "rounding": "lookahead"}, "IPOPT"),
+    "sqp-gn+continuous+lookahead": ({"solver": "sqp-gn", "relaxation": "continuous",
+                                     "rounding": "lookahead"}, "Gauss-Newton SQP"),
+    "fatrop+continuous+lookahead": ({"solver": "fatrop", "relaxation": "continuous",
+                                     "rounding": "lookahead"}, "fatrop"),
+    "ipopt+continuous+lookahead": ({"solver": "ipopt", "relaxation": "continuous",
+                                    "rounding": "lookahead"}, "IPOPT"),
 }
+DEFAULT = "sqp+continuous+lookahead"
 ROBUSTNESS = ("mismatch", "noise")
 
 
@@ -115,10 +122,10 @@ def main(argv=None):
     for name in names:
         rows.append((name, run_config(model, CONFIGS[name][0], starts, seed=args.seed)))
         print(table(rows[-1:]).splitlines()[-1], flush=True)
-    if "sqp+lookahead" in names:
+    if DEFAULT in names:
         for scenario in ROBUSTNESS:
-            rows.append(("sqp+lookahead", run_config(model, CONFIGS["sqp+lookahead"][0],
-                                                     starts, scenario, seed=args.seed)))
+            rows.append((DEFAULT, run_config(model, CONFIGS[DEFAULT][0], starts, scenario,
+                                             seed=args.seed)))
             print(table(rows[-1:]).splitlines()[-1], flush=True)
     print()
     print(table(rows))

@@ -126,6 +126,7 @@ def test_find_upright_from_the_model_for_either_angle_convention(model):
     ({"track_limit": -1.0}, ValueError, "track_limit"),
     ({"solver": "cplex"}, ValueError, "solver"),
     ({"rounding": "ceil"}, ValueError, "rounding"),
+    ({"weights": {"angel": 1.0}}, ValueError, "weights"),
 ])
 def test_bad_arguments_raise_naming_the_argument(model, kwargs, exc, word):
     with pytest.raises(exc, match=word):
@@ -158,7 +159,7 @@ def test_failed_solve_falls_back_to_the_shifted_previous_plan(model):
     ctrl = SwingUpMPC(model)
     x = np.array([0.0, 2.5, 0.0, 0.5])
     ctrl(x)
-    previous = ctrl.plan_["controls"] @ ctrl.levels
+    previous = ctrl.plan_["forces"]
     failures = ctrl.stats.n_failures
 
     def fail(*args, **kwargs):
@@ -170,7 +171,7 @@ def test_failed_solve_falls_back_to_the_shifted_previous_plan(model):
     assert ctrl.stats.n_failures == failures + 1
     assert ctrl.stats.statuses["exception"] == 1
     # the plan used now is the previous one shifted by one interval
-    np.testing.assert_allclose(ctrl.plan_["controls"][:-1] @ ctrl.levels, previous[1:])
+    np.testing.assert_allclose(ctrl.plan_["forces"][:-1], previous[1:])
     assert not ctrl.plan_["success"]
 
 

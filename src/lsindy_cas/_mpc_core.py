@@ -140,8 +140,12 @@ class DiscreteInputMPC:
         Solver of the warm-started steps: SQP with the exact (convexified) Hessian and HPIPM
         QPs, SQP with a Gauss-Newton Hessian, fatrop or IPOPT (see ``benchmarks/bench_mpc.py``
         for the comparison that chose the default).
-    relaxation : {"poc", "continuous"}
-        Outer-convexified weights per level, or a continuous input in ``[min, max]``.
+    relaxation : {"continuous", "poc"}
+        A continuous input in ``[min, max]`` (default), or partial outer convexification:
+        one weight per level, summing to 1.  For an ODE affine in the input both relax to
+        the same convex hull; the continuous one has fewer variables and was as successful
+        and faster in ``benchmarks/bench_mpc.py``.  The weights of a continuous input are
+        those of its two adjacent levels (:func:`~lsindy_cas._rounding.weights_from_value`).
     rounding : {"lookahead", "sur", "nearest"}
         How the applied level is chosen: lookahead over all discrete sequences of ``depth``
         intervals (first move among the levels adjacent to the relaxed first input), sum-up
@@ -167,7 +171,7 @@ class DiscreteInputMPC:
 
     def __init__(self, ode, levels, *, input_index, stage_residual, terminal_residual, dt,
                  horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
-                 solver="sqp", relaxation="poc", rounding="lookahead", depth=4,
+                 solver="sqp", relaxation="continuous", rounding="lookahead", depth=4,
                  max_iter=10, tol=1e-4, accept_inexact=True, lookahead_penalty=None,
                  recover_after=1):
         if not isinstance(ode, ca.Function):
@@ -232,6 +236,11 @@ class DiscreteInputMPC:
             return np.asarray(c, dtype=float)
         return weights_from_value(float(c[0]), self.levels)
 
+    def _forces(self, controls):
+        """Relaxed input values (horizon,) of the stage control vectors (horizon, n_control)."""
+        controls = np.asarray(controls, dtype=float)
+        return controls @ self.levels if self.relaxation == "poc" else controls[:, 0]
+
     def _control_of_force(self, force):
         """Stage control vector representing the force ``force`` (an admissible level)."""
         if self.relaxation == "poc":
@@ -258,7 +267,7 @@ class DiscreteInputMPC:
 
     def _choose_by_lookahead(self, x, controls, states):
         """Level index starting the cheapest discrete sequence (see :mod:`._lookahead`)."""
-        forces = np.array([self._weights(c) @ self.levels for c in controls])
+        forces = self._forces(controls)
         span = self.levels[-1] - self.levels[0]
         free = ((forces > self.levels[0] + 1e-3 * span)
                 & (forces < self.levels[-1] - 1e-3 * span)).astype(float)
@@ -326,7 +335,8 @@ class DiscreteInputMPC:
         else:
             index = self._rounder(self._weights(controls[0]))
         force = float(self.levels[index])
-        self.plan_ = {"controls": controls, "states": states, "success": ok}
+        self.plan_ = {"controls": controls, "forces": self._forces(controls), "states": states,
+                      "success": ok}
         zs, lgs = self.nlp.shift(z, lam_g)
         self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
         self.stats.step_times.append(time.perf_counter() - t_start)

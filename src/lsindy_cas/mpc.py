@@ -100,7 +100,20 @@ class SwingUpMPC(DiscreteInputMPC):
         two shape the lookahead's penalty on pole rates above ``rate_band`` near the top.
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
-        ``n_substeps``, ``max_iter``, ``tol``).
+        ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
+        ``recover_after``).
+
+    Attributes
+    ----------
+    upright : float
+        Upright pole angle used by the cost (rad).
+    cart_index, pole_index : int
+        Positions of the cart and pole in the model's coordinates.
+    stats : MPCStats
+        Solve counts and times, accumulated over episodes.
+    plan_ : dict
+        Last relaxed plan: ``controls`` (horizon, n_control), ``forces`` (horizon,) relaxed
+        forces (N), ``states`` (horizon, 4) predicted x_1..x_N, ``success``.
     """
 
     default_weights = {"angle": 10.0, "position": 1.0, "velocity": 0.1, "rate": 0.1,
@@ -138,6 +151,10 @@ class SwingUpMPC(DiscreteInputMPC):
         if upright is None:
             upright = find_upright(ode, ic, ip)
         self.upright = float(upright)
+        unknown = set(weights or {}) - set(self.default_weights)
+        if unknown:
+            raise ValueError(f"weights has unknown keys {sorted(unknown)}; known: "
+                             f"{sorted(self.default_weights)}.")
         w = dict(self.default_weights, **(weights or {}))
         x = ca.SX.sym("x", 4)
         # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
