@@ -5,11 +5,13 @@ a finite set (the paper's {-10, 0, +10} N), using only a model's ``ode()``: the 
 coordinate is the cart, the other the pole, and the upright angle is the unstable rest
 equilibrium of that ODE (:func:`find_upright`) unless given.  It is a
 :class:`DiscreteInputMPC`, the multiple-shooting MPC on any CasADi ODE with a discrete input
-set: each step solves a relaxation warm-started from the shifted previous solution (partial
-outer convexification: one weight per admissible level, summing to 1), then picks one
-admissible level (lookahead over discrete sequences, sum-up rounding carried across steps, or
-plain rounding).  A failed solve falls back to the shifted previous plan and is counted in
-``stats``.
+set: each step solves a relaxation warm-started from the shifted previous solution (the input
+continuous in ``[min, max]``, or partial outer convexification: one weight per admissible
+level, summing to 1), by SQP with HPIPM QPs, then picks one admissible level (by default a
+lookahead over all discrete sequences of a few intervals, scored against the relaxed plan's
+cost-to-go; or sum-up rounding carried across steps; or plain rounding).  A failed solve falls
+back to the shifted previous plan, is counted in ``stats``, and the next step re-solves with
+IPOPT.
 
 Example
 -------
