@@ -15,6 +15,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(VENV)/bin/lsindy reproduce --out $(OUT)
+	$(VENV)/bin/lsindy swingup --out $(OUT) --json $(OUT)/swingup.json
 
 test: $(STAMP)
 	$(PY) -m pytest -q -m "not slow"
@@ -24,6 +25,8 @@ test-all: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_search.py
+	$(PY) benchmarks/bench_mpc.py
+	$(PY) benchmarks/noise_sweep.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
