@@ -72,7 +72,9 @@ def _identify(args) -> int:
     if args.terms is not None and args.terms < 1:
         raise ValueError(f"--terms must be a positive integer, got {args.terms}")
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=_split(args.prior), form=args.form)
-    model.fit(trajs, scale, passive=True if args.passive else None)
+    from .progress import ProgressBar
+    with ProgressBar("searching supports") as bar:
+        model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
     print(model)
     print()
     print(model.diagnostics_)

@@ -143,7 +143,8 @@ class LagrangianSINDy:
                                          (s.raw.n_samples, len(s.noise))) for s in smoothed])
         return states, var, smoothed
 
-    def fit(self, trajectories, scale_trajectories=None, passive=None) -> "LagrangianSINDy":
+    def fit(self, trajectories, scale_trajectories=None, passive=None,
+            progress=None) -> "LagrangianSINDy":
         """Identify the energy, Lagrangian and equations of motion.
 
         Parameters
@@ -155,6 +156,8 @@ class LagrangianSINDy:
         passive : bool, optional
             Force (True) or forbid (False) the passive scheme; by default it is used when the
             training data carry no power.
+        progress : callable ``(n_done, n_total)``, optional
+            Progress of the support search (e.g. :class:`lsindy_cas.progress.ProgressBar`).
         """
         forced = self._validate()
         lib = self.library
@@ -181,7 +184,8 @@ class LagrangianSINDy:
         noise = (noise_model(bal, state_var, self.smoothing_)
                  if state_var is not None and bal.centred else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
-                     scale_system=scale_system, max_terms=self.max_terms, noise=noise)
+                     scale_system=scale_system, max_terms=self.max_terms, noise=noise,
+                     progress=progress)
         coef = sel.coef
         if state_var is not None and bal.centred:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
