@@ -7,11 +7,12 @@ increasing), one column per coordinate ``<q>``, one ``<q>_dot`` per coordinate, 
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from ._io import atomic_write
 
 __all__ = ["Trajectory", "load_trajectories"]
 
@@ -146,19 +147,14 @@ class Trajectory:
         suffix = path.suffix.lower()
         if suffix not in (".csv", ".npz"):
             raise ValueError(f"{path}: unknown trajectory format {suffix!r}; use .csv or .npz")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=suffix)
-        os.close(fd)
-        try:
+        def write(tmp):
             if suffix == ".csv":
                 data = np.column_stack(list(cols.values()))
                 np.savetxt(tmp, data, delimiter=",", header=",".join(cols), comments="", fmt="%.17g")
             else:
                 np.savez(tmp, **cols)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+
+        atomic_write(path, write)
         return path
 
     @classmethod

@@ -2,14 +2,13 @@
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import sympy as sp
 
 from . import __version__
+from ._io import atomic_write
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from .data import Trajectory
@@ -297,17 +296,8 @@ class LagrangianSINDy:
 
     def save(self, path) -> Path:
         """Write the model as JSON (atomically; the DESIGN.md model file)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".json")
-        try:
-            with os.fdopen(fd, "w") as fh:
-                json.dump(self.to_dict(), fh, indent=2)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        return path
+        text = json.dumps(self.to_dict(), indent=2)
+        return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
     @classmethod
     def load(cls, path) -> "LagrangianSINDy":
