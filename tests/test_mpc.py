@@ -251,3 +251,21 @@ def test_swingup_script_runs_small_and_writes_json_and_figures(tmp_path):
 def test_swingup_script_bad_input_exits_2(capsys):
     assert _script().main(["--episodes", "0"]) == 2
     assert "episodes" in capsys.readouterr().err
+
+
+def test_online_correction_estimates_the_input_gain_error(model):
+    """The lookahead's RLS correction recovers a plant whose input effect is 20 % stronger."""
+    ctrl = SwingUpMPC(model)
+    F = ctrl.step_function
+    x = np.array([0.0, 3.0, 0.0, 0.0])
+    for _ in range(20):
+        force = float(ctrl(x))
+        u = np.zeros(2)
+        u[ctrl.cart_index] = force
+        x_u = np.asarray(F(x, u)).ravel()
+        x_0 = np.asarray(F(x, np.zeros(2))).ravel()
+        x = x_u + 0.2 * (x_u - x_0)  # the "plant"
+    vel = 2 + ctrl.pole_index
+    assert abs(ctrl._theta[vel, 0] - 0.2) < 0.05
+    ctrl_off = SwingUpMPC(model, adapt=False)
+    assert ctrl_off(x) in FORCES and not ctrl_off._theta.any()

@@ -59,8 +59,9 @@ def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth,
     -------
     casadi.Function
         ``(x0 (n_state,), X (n_state, N) planned x_1..x_N, U (1, N) planned inputs,
-        free (1, N) 1 where the planned input is strictly inside the level range)
-        -> cost (n_levels**depth,)``; sequence ``j`` starts with level
+        free (1, N) 1 where the planned input is strictly inside the level range,
+        gain (n_state,), bias (n_state,) an online correction of the enumerated steps:
+        ``x+ = F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``) -> cost (n_levels**depth,)``; sequence ``j`` starts with level
         ``j // n_levels**(depth - 1)``.
     """
     scale = float(np.max(np.abs(levels))) or 1.0
@@ -108,13 +109,18 @@ def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth,
         return out
 
     x0 = ca.SX.sym("x0", n_state)
+    gain = ca.SX.sym("gain", n_state)
+    bias = ca.SX.sym("bias", n_state)
     frontier, costs = [x0], [ca.SX(0)]
     for _ in range(depth):
         new_frontier, new_costs = [], []
         for x, c in zip(frontier, costs):
             lx = stage(x)[0]
+            x_zero = lin(x, 0.0)[0]
             for level in levels:
                 xn = lin(x, level)[0]
+                # online model correction: input effect scaled by 1 + gain, plus a bias
+                xn = xn + gain * (xn - x_zero) + bias
                 new_frontier.append(xn)
                 new_costs.append(c + dt * (lx + input_weight * (level / scale) ** 2)
                                  + violation(xn))
@@ -123,5 +129,5 @@ def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth,
     for x, c in zip(frontier, costs):
         d = x - x_ref
         leaf.append(c + ca.dot(s, d) + 0.5 * ca.bilin(P, d, d))
-    return ca.Function("lookahead", [x0, X, U, free], [ca.vertcat(*leaf)],
-                       ["x0", "X", "U", "free"], ["cost"])
+    return ca.Function("lookahead", [x0, X, U, free, gain, bias], [ca.vertcat(*leaf)],
+                       ["x0", "X", "U", "free", "gain", "bias"], ["cost"])

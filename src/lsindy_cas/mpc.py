@@ -103,7 +103,7 @@ class SwingUpMPC(DiscreteInputMPC):
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
-        ``recover_after``).
+        ``recover_after``, ``adapt``, ``adapt_forgetting``, ``adapt_max_gain``).
 
     Attributes
     ----------
