@@ -56,8 +56,9 @@ class Smoothed:
     noise : array (2n,)
         Estimated standard deviation of the measurement noise of each state column [q, q̇]
         (units of that column), σ̂² = RSS / (N − tr H) at the likelihood-chosen λ.
-    error : array (2n,)
-        Standard deviation of the noise left in the smoothed columns, σ̂ √(tr H² / N).
+    error : array (n_samples, 2n)
+        Standard deviation of the noise left in each smoothed sample, σ̂ √((H Hᵀ)_ii) (larger
+        near the ends of the run, where the smoother has fewer neighbours to average).
     lam : array (2n,)
         Penalty λ used per column (0 = not smoothed).
     """
@@ -143,8 +144,10 @@ def whittaker(t, y, *, order: int = 3, lam: float | None = None, undersmooth: fl
     -------
     z : array like ``y``
         Smoothed values.
-    noise, error, lam : arrays (m,)
-        Noise estimate σ̂, remaining error std and the λ used, per column.
+    noise, lam : arrays (m,)
+        Noise estimate σ̂ and the λ used, per column.
+    error : array like ``y``
+        Standard deviation of the noise left in each smoothed value.
     """
     t = np.asarray(t, float)
     y = np.asarray(y, float)
@@ -163,13 +166,13 @@ def whittaker(t, y, *, order: int = 3, lam: float | None = None, undersmooth: fl
         Z, noise, err, lams = _whittaker_block(t, Y, order, lam, undersmooth, breaks)
     else:
         Z, noise, err, lams = _whittaker_blocks(t, Y, order, lam, undersmooth, breaks)
-    return (Z[:, 0] if col else Z), noise, err, lams
+    return (Z[:, 0] if col else Z), noise, (err[:, 0] if col else err), lams
 
 
 def _whittaker_block(t, Y, d, lam, undersmooth, breaks):
     n, m = Y.shape
     if n <= 2 * d + 2:                     # too short to smooth: leave as is
-        return Y.copy(), np.zeros(m), np.zeros(m), np.zeros(m)
+        return Y.copy(), np.zeros(m), np.zeros((n, m)), np.zeros(m)
     s, U = _basis(t, d, breaks)
     C = U.T @ Y                                            # (n, m) spectral coefficients
     scale = s.max()
@@ -179,7 +182,8 @@ def _whittaker_block(t, Y, d, lam, undersmooth, breaks):
     V = 1.0 + 1.0 / (grid[:, None] * s[None, pen])         # (g, n_pen)
     logdet = np.log(V).sum(axis=1)
     Z = np.empty_like(Y)
-    noise, err, lams = np.empty(m), np.empty(m), np.empty(m)
+    noise, err, lams = np.empty(m), np.empty((n, m)), np.empty(m)
+    U2 = U ** 2
     n_pen = int(pen.sum())
     for j in range(m):
         if lam is None:
@@ -196,7 +200,7 @@ def _whittaker_block(t, Y, d, lam, undersmooth, breaks):
         fu = 1.0 / (1.0 + lam_u * s)
         Z[:, j] = U @ (fu * C[:, j])
         noise[j] = np.sqrt(sig2)
-        err[j] = np.sqrt(sig2 * float(fu @ fu) / n)
+        err[:, j] = np.sqrt(sig2 * (U2 @ fu ** 2))           # σ̂² diag(H Hᵀ), H = U diag(fu) Uᵀ
         lams[j] = lam_u * scale
     return Z, noise, err, lams
 
@@ -204,7 +208,7 @@ def _whittaker_block(t, Y, d, lam, undersmooth, breaks):
 def _whittaker_blocks(t, Y, d, lam, undersmooth, breaks):
     """Overlapping blocks of ≤ _MAX_BLOCK samples; each keeps its central part."""
     n, m = Y.shape
-    Z = np.empty_like(Y)
+    Z, err = np.empty_like(Y), np.empty_like(Y)
     stats = []
     step = _MAX_BLOCK - 2 * _OVERLAP
     start = 0
@@ -213,14 +217,16 @@ def _whittaker_blocks(t, Y, d, lam, undersmooth, breaks):
         hi = min(n, lo + _MAX_BLOCK)
         lo = max(0, hi - _MAX_BLOCK)
         br = breaks[(breaks > lo) & (breaks < hi)] - lo
-        Zb, *st = _whittaker_block(t[lo:hi], Y[lo:hi], d, lam, undersmooth, br)
+        Zb, noise_b, err_b, lam_b = _whittaker_block(t[lo:hi], Y[lo:hi], d, lam, undersmooth, br)
         stop = min(n, start + step) if hi < n else n
         Z[start:stop] = Zb[start - lo:stop - lo]
-        stats.append((stop - start, st))
+        err[start:stop] = err_b[start - lo:stop - lo]
+        stats.append((stop - start, noise_b, lam_b))
         start = stop
-    w = np.array([c for c, _ in stats], float)
-    noise, err, lams = (np.sqrt(np.average(np.array([st[i] for _, st in stats]) ** 2, axis=0, weights=w))
-                        for i in range(3))
+    w = np.array([c for c, _, _ in stats], float)
+    noise = np.sqrt(np.average(np.array([s[1] for s in stats]) ** 2, axis=0, weights=w))
+    lams = np.exp(np.average(np.log(np.maximum(np.array([s[2] for s in stats]), 1e-300)), axis=0,
+                             weights=w))
     return Z, noise, err, lams
 
 
