@@ -23,51 +23,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .balance import EnergyBalance
-from .uncertainty import T_CRIT, Jackknife
 
-__all__ = ["Diagnostics", "Significant", "ConstantForceTrap", "constant_force_trap", "diagnose",
+__all__ = ["Diagnostics", "ConstantForceTrap", "constant_force_trap", "diagnose",
            "conserved_quantities", "NEAR_TIE"]
 
 NEAR_TIE = 2.0          # an admissible support within this factor of the winner's score is a near tie
 _NULL_FACTOR = 10.0     # see _null_dim
 _POOR_FIT = 0.5         # unexplained fraction of the work above which the data explain too little
 _NUMERICAL_ZERO = 1e-20  # passive scores (squared normalised singular values) this small are exact
-
-
-class Significant:
-    """Admissibility plus significance: ``(support, coef) -> (ok, reason)``.
-
-    A candidate passes when it avoids the ``excluded`` terms and terms linear in the velocities
-    (which cannot appear in an energy, see :mod:`lsindy_cas.legendre`), the physical test passes
-    (prior terms present, kinetic part positive definite), and every coefficient has |t| ≥ T_CRIT
-    in a delete-a-block jackknife (:class:`lsindy_cas.uncertainty.Jackknife`).
-    """
-
-    def __init__(self, physical, bal: EnergyBalance, scale_system=None, excluded=()):
-        self.physical = physical
-        self.bal = bal
-        self.scale_system = scale_system
-        self.excluded = set(int(j) for j in excluded)
-        self._jack = None
-
-    def __call__(self, support, coef):
-        if self.excluded & set(support):
-            return False, ("uses a coordinate whose coefficient a constant input leaves "
-                           "undetermined (E and E − u·x fit equally)")
-        lib = self.physical.library
-        if any(lib.velocity_degree(j) == 1 for j in support):
-            return False, ("has a term linear in the velocities, which no energy has (it cancels "
-                           "in H = p·q̇ − L): a momentum-like conserved quantity, not the energy")
-        ok, why = self.physical(support, coef)
-        if not ok:
-            return ok, why
-        S = list(support)
-        if self._jack is None:
-            self._jack = Jackknife(self.bal)
-        t = self._jack.t(S, coef[S], scale_system=self.scale_system)
-        if np.any(t < T_CRIT):
-            return False, f"a term is not significantly non-zero (jackknife |t| < {T_CRIT})"
-        return True, "admissible"
 
 
 @dataclass

@@ -12,12 +12,12 @@ from ._io import atomic_write
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from .data import Trajectory
-from .diagnostics import Significant, constant_force_trap, diagnose
+from .diagnostics import constant_force_trap, diagnose
 from .legendre import legendre
 from .library import Library
 from .mechanics import EulerLagrange, simulate_ode
 from .search import _normalise
-from .selection import select
+from .selection import Significant, select
 from .smoothing import smooth
 from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
     row_gradients, sample_weights

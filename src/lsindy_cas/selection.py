@@ -1,7 +1,11 @@
 """Scale-free model selection: the support *and* the number of terms k, with physical admissibility.
 
 For each k the best admissible support comes from :func:`lsindy_cas.search.best_subset` (all
-k-supports scored by a scale-free criterion).  k itself is chosen on held-out data: whole
+k-supports scored by a scale-free criterion).  Admissible (:class:`Significant`) means: physically
+an energy (prior terms present, kinetic part positive definite, no term linear in the velocities),
+no term that the data leave undetermined (see :mod:`lsindy_cas.diagnostics`, constant input), and
+every coefficient significantly non-zero in a block jackknife — a dimensionless t-test that keeps
+noise-fitting terms out without any threshold in the units of the data.  k itself is chosen on held-out data: whole
 trajectories when there are four or more, otherwise contiguous stretches of each run (five folds).
 The held-out error of a support is the fraction of the held-out work (driven) — or of the
 held-out changes of its terms (passive) — that the fitted energy does not explain, so it has no
@@ -40,9 +44,9 @@ import numpy as np
 
 from .balance import EnergyBalance
 from .search import Candidate, SearchResult, best_subset, score_supports
-from .uncertainty import recentre
+from .uncertainty import T_CRIT, Jackknife, recentre
 
-__all__ = ["Step", "Selection", "select", "cv_error", "fold_ids", "IMPROVEMENT"]
+__all__ = ["Step", "Selection", "Significant", "select", "cv_error", "fold_ids", "IMPROVEMENT"]
 
 IMPROVEMENT = 2.0
 # χ of a correct model is ≈ 1 − k/m_eff in theory; measured 0.2–1.7 for the true energies of the
@@ -57,6 +61,42 @@ MAX_EXTRA = 8              # automatic k: at most this many terms beyond the pri
 # rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
 _CV_FLOOR = 1e-18
 _T95 = {1: 6.31, 2: 2.92, 3: 2.35, 4: 2.13, 5: 2.02}   # one-sided 5 % t quantiles, by dof
+
+
+class Significant:
+    """Admissibility plus significance: ``(support, coef) -> (ok, reason)``.
+
+    A candidate passes when it avoids the ``excluded`` terms and terms linear in the velocities
+    (which cannot appear in an energy, see :mod:`lsindy_cas.legendre`), the physical test passes
+    (prior terms present, kinetic part positive definite), and every coefficient has |t| ≥ T_CRIT
+    in a delete-a-block jackknife (:class:`lsindy_cas.uncertainty.Jackknife`).
+    """
+
+    def __init__(self, physical, bal: EnergyBalance, scale_system=None, excluded=()):
+        self.physical = physical
+        self.bal = bal
+        self.scale_system = scale_system
+        self.excluded = set(int(j) for j in excluded)
+        self._jack = None
+
+    def __call__(self, support, coef):
+        if self.excluded & set(support):
+            return False, ("uses a coordinate whose coefficient a constant input leaves "
+                           "undetermined (E and E − u·x fit equally)")
+        lib = self.physical.library
+        if any(lib.velocity_degree(j) == 1 for j in support):
+            return False, ("has a term linear in the velocities, which no energy has (it cancels "
+                           "in H = p·q̇ − L): a momentum-like conserved quantity, not the energy")
+        ok, why = self.physical(support, coef)
+        if not ok:
+            return ok, why
+        S = list(support)
+        if self._jack is None:
+            self._jack = Jackknife(self.bal)
+        t = self._jack.t(S, coef[S], scale_system=self.scale_system)
+        if np.any(t < T_CRIT):
+            return False, f"a term is not significantly non-zero (jackknife |t| < {T_CRIT})"
+        return True, "admissible"
 
 
 @dataclass
