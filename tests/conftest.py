@@ -1,3 +1,6 @@
+import importlib.util
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -18,3 +21,18 @@ def paper_setups():
 @pytest.fixture
 def rng():
     return np.random.default_rng(20200101)
+
+
+@pytest.fixture(scope="session")
+def load_script():
+    """Import a repository script (e.g. ``"mpc/swingup.py"``) that is not part of the package."""
+    root = Path(__file__).resolve().parents[1]
+
+    def load(relative):
+        path = root / relative
+        spec = importlib.util.spec_from_file_location(path.stem + "_script", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+
+    return load

@@ -4,9 +4,7 @@ The closed-loop checks run the controller built from the *identified* cart-pendu
 plant (CVODES, zero-order hold) and judge them by issue 3's success criterion.
 """
 
-import importlib.util
 import math
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -232,24 +230,16 @@ def test_twenty_random_starts_all_succeed(ctrl, plant):
 
 # --- the script ----------------------------------------------------------------------------------
 
-def _script():
-    path = Path(__file__).resolve().parents[1] / "mpc" / "swingup.py"
-    spec = importlib.util.spec_from_file_location("swingup_script", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_swingup_script_runs_small_and_writes_json_and_figures(tmp_path):
-    code = _script().main(["--episodes", "1", "--scenarios", "nominal",
+def test_swingup_script_runs_small_and_writes_json_and_figures(tmp_path, load_script):
+    code = load_script("mpc/swingup.py").main(["--episodes", "1", "--scenarios", "nominal",
                            "--json", str(tmp_path / "m.json"), "--out", str(tmp_path)])
     assert code == 0
     assert (tmp_path / "m.json").exists()
     assert (tmp_path / "swingup_phase.png").exists() and (tmp_path / "swingup_time.png").exists()
 
 
-def test_swingup_script_bad_input_exits_2(capsys):
-    assert _script().main(["--episodes", "0"]) == 2
+def test_swingup_script_bad_input_exits_2(capsys, load_script):
+    assert load_script("mpc/swingup.py").main(["--episodes", "0"]) == 2
     assert "episodes" in capsys.readouterr().err
 
 

@@ -218,21 +218,11 @@ def test_other_simulator_sign_convention_and_rate(rng):
     assert compare(model.coef_, truth)[1] < 0.05      # 5 %: the benchmark's success criterion
 
 
-def _noise_sweep():
-    import importlib.util
-    from pathlib import Path
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "noise_sweep.py"
-    spec = importlib.util.spec_from_file_location("noise_sweep", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["spherical", "double", "cart"])
-def test_rich_protocol_at_5e2_one_seed(name):
+def test_rich_protocol_at_5e2_one_seed(name, load_script):
     """Issue 4's rich-protocol target cell, one seed of the benchmark (10 runs × 5 s, σ = 5e-2):
     exact support and every coefficient within 5 %, k chosen automatically."""
-    (row,) = _noise_sweep().run_one((name, "rich", 5e-2, 0, ("ours",)))
+    (row,) = load_script("benchmarks/noise_sweep.py").run_one((name, "rich", 5e-2, 0, ("ours",)))
     assert row["exact_support"] and row["k"] == row["k_true"]
     assert row["max_rel_error"] < 0.05
