@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lsindy_cas import systems
 from lsindy_cas.mpc import SwingUpMPC
-from lsindy_cas.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
+from lsindy_cas.swingup import (identify_cart_pendulum, random_starts, run_episode,
+                                scenario_plant, scenario_stats)
 
 CONFIGS = {
     # name: (SwingUpMPC options, what it shows); "default" is also run for robustness
@@ -50,10 +50,6 @@ DEFAULT = "sqp+continuous+lookahead"
 ROBUSTNESS = ("mismatch", "noise")
 
 
-def _pct(a, q):
-    return float(np.percentile(a, q)) if len(a) else float("nan")
-
-
 def run_config(model, options, starts, scenario="nominal", seed=0, noise_std=0.01):
     """Run all starts with one controller; returns a JSON-ready dict of metrics."""
     t0 = time.perf_counter()
@@ -62,31 +58,20 @@ def run_config(model, options, starts, scenario="nominal", seed=0, noise_std=0.0
     rng = np.random.default_rng([seed, 7])
     eps = []
     for x0 in starts:
-        if scenario == "mismatch":
-            f = 1.0 + 0.1 * rng.choice([-1.0, 1.0], size=3)
-            plant = Plant(systems.cart_pendulum(mc=f[0], mp=0.1 * f[1], L=f[2]), ctrl.dt)
-        else:
-            plant = Plant(systems.cart_pendulum(), ctrl.dt)
+        plant, _ = scenario_plant(scenario, rng, ctrl.dt)
         eps.append(run_episode(ctrl, plant, x0, noise_std=noise_std if scenario == "noise"
                                else 0.0, rng=rng))
-    st = ctrl.stats
-    wall = np.asarray(st.solve_times) * 1e3
-    cpu = np.asarray(st.solve_cpu_times) * 1e3
-    step = np.asarray(st.step_times) * 1e3
-    t_up = np.array([e.time_to_upright for e in eps])
-    return {
-        "scenario": scenario, "options": options, "episodes": len(eps),
-        "success_rate": float(np.mean([e.success for e in eps])),
-        "median_time_to_upright": float(np.median(t_up)),
-        "max_track_used": float(max(e.track_used for e in eps)),
-        "all_forces_in_set": bool(all(np.isin(e.forces, ctrl.levels).all() for e in eps)),
-        "n_solves": st.n_solves, "n_failures": st.n_failures, "n_inexact": st.n_inexact,
-        "solve_ms": {"median": _pct(wall, 50), "p99": _pct(wall, 99), "max": float(wall.max())},
-        "solve_cpu_ms": {"median": _pct(cpu, 50), "p99": _pct(cpu, 99)},
-        "step_ms": {"median": _pct(step, 50), "p99": _pct(step, 99)},
-        "iterations_median": _pct(st.iterations, 50), "build_s": round(build, 3),
-        "failed_starts": [e.x0.round(4).tolist() for e in eps if not e.success],
-    }
+    s = ctrl.stats.summary()
+    return dict(
+        scenario_stats(eps), scenario=scenario, options=options,
+        all_forces_in_set=bool(all(np.isin(e.forces, ctrl.levels).all() for e in eps)),
+        n_solves=s["n_solves"], n_inexact=s["n_inexact"],
+        solve_ms={"median": s["solve_ms_median"], "p99": s["solve_ms_p99"],
+                  "max": s["solve_ms_max"]},
+        solve_cpu_ms={"median": s["solve_cpu_ms_median"], "p99": s["solve_cpu_ms_p99"]},
+        step_ms={"median": s["step_ms_median"], "p99": s["step_ms_p99"]},
+        iterations_median=s["iterations_median"], build_s=round(build, 3),
+        failed_starts=[e.x0.round(4).tolist() for e in eps if not e.success])
 
 
 def table(rows):

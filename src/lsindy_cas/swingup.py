@@ -25,7 +25,8 @@ import casadi as ca
 import numpy as np
 
 __all__ = ["Episode", "Plant", "add_swingup_arguments", "evaluate", "identify_cart_pendulum",
-           "random_starts", "run_episode", "run_from_args", "run_swingup"]
+           "random_starts", "run_episode", "run_from_args", "run_swingup", "scenario_plant",
+           "scenario_stats"]
 
 ANGLE_TOL, RATE_TOL, WINDOW, T_END = 0.1, 0.5, 3.0, 10.0
 SCENARIOS = ("nominal", "mismatch", "noise")
@@ -222,7 +223,12 @@ def identify_cart_pendulum(system=None):
     return model, trajs
 
 
-def _scenario_plant(name, rng, dt):
+def scenario_plant(name, rng, dt):
+    """The true plant of one episode of scenario ``name`` and its parameter factors (or None).
+
+    ``mismatch`` draws the sign of a 10 % error in cart mass, pole mass and pole length from
+    ``rng`` (three draws per episode); the other scenarios use the true cart-pendulum.
+    """
     from . import systems
 
     if name == "mismatch":
@@ -231,7 +237,8 @@ def _scenario_plant(name, rng, dt):
     return Plant(systems.cart_pendulum(), dt), None
 
 
-def _stats(episodes):
+def scenario_stats(episodes):
+    """Success rate, times to upright, track used and fallbacks of a list of episodes."""
     t_up = np.array([e.time_to_upright for e in episodes])
     finite = t_up[np.isfinite(t_up)]
     return {"episodes": len(episodes),
@@ -302,7 +309,7 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
         eps, rows = [], []
         ctrl.stats.clear()
         for i, x0 in enumerate(starts):
-            plant, factors = _scenario_plant(name, rng, ctrl.dt)
+            plant, factors = scenario_plant(name, rng, ctrl.dt)
             ep = run_episode(ctrl, plant, x0, noise_std=noise_std if name == "noise" else 0.0,
                              rng=rng)
             row = ep.summary()
@@ -315,7 +322,7 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
                 f"t_up={ep.time_to_upright:.2f}s  |x|max={ep.track_used:.2f}m  "
                 f"fallbacks={ep.n_failures}")
         runs[name] = eps
-        report["scenarios"][name] = dict(_stats(eps), solver=ctrl.stats.summary(),
+        report["scenarios"][name] = dict(scenario_stats(eps), solver=ctrl.stats.summary(),
                                          episodes_detail=rows)
     log(summary_table(report))
     if json_path is not None:
