@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .balance import EnergyBalance
+from .selection import coef_on_support
 
 __all__ = ["Diagnostics", "ConstantForceTrap", "constant_force_trap", "diagnose",
            "conserved_quantities", "NEAR_TIE"]
@@ -177,20 +178,11 @@ def _near_ties(model, bal, admissible, n: int = 5) -> list:
         seen.add(tuple(c.support))
         ok, why = c.admissible, c.reason
         if ok is None and admissible is not None and c.score <= NEAR_TIE * base:
-            coef = _coef(bal, c.support)
+            coef = None if bal.passive else coef_on_support(bal.A, bal.b, c.support, None)[0]
             ok, why = (False, "no coefficients") if coef is None else admissible(c.support, coef)
         out.append(([lib.names[j] for j in c.support], float(max(c.score, _NUMERICAL_ZERO) / base),
                     bool(ok), why))
     return out
-
-
-def _coef(bal, S):
-    S = list(S)
-    coef = np.zeros(bal.A.shape[1])
-    if bal.b is None:
-        return None
-    coef[S] = np.linalg.lstsq(bal.A[:, S], bal.b, rcond=None)[0]
-    return coef
 
 
 def conserved_quantities(library, bal: EnergyBalance, candidates, energy_coef, floor: float):

@@ -46,7 +46,8 @@ from .balance import EnergyBalance
 from .search import Candidate, SearchResult, best_subset, score_supports
 from .uncertainty import T_CRIT, Jackknife, recentre
 
-__all__ = ["Step", "Selection", "Significant", "select", "cv_error", "fold_ids", "IMPROVEMENT"]
+__all__ = ["Step", "Selection", "Significant", "select", "cv_error", "fold_ids", "coef_on_support",
+           "IMPROVEMENT"]
 
 IMPROVEMENT = 2.0
 # χ of a correct model is ≈ 1 − k/m_eff in theory; measured 0.2–1.7 for the true energies of the
@@ -267,7 +268,7 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, forced
     candidates, winner = [], None
     for idx in cand_order[:min(max_visits, int((~degenerate).sum()))]:
         sup = tuple(int(j) for j in S[idx])
-        coef, null_dim = _coef_on(A, b, sup, scale_system)
+        coef, null_dim = coef_on_support(A, b, sup, scale_system)
         ok_, why = (False, "scale trial cannot fix the scale") if coef is None else (
             (True, "admissible") if admissible is None else admissible(sup, coef))
         candidates.append(Candidate(sup, float(scores[idx]), ok_, why, coef))
@@ -308,7 +309,7 @@ def _reducible(A, b, S, tol=1e-6) -> np.ndarray:
     return out
 
 
-def _coef_on(A, b, S, scale_system):
+def coef_on_support(A, b, S, scale_system):
     """Coefficients (p,) of support S in data units (least squares, or scaled null vector)."""
     S = list(S)
     xi = np.zeros(A.shape[1])
