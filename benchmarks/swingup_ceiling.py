@@ -26,9 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from lsindy_cas import systems
 from lsindy_cas.mpc import SwingUpMPC
-from lsindy_cas.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
+from lsindy_cas.swingup import (Plant, identify_cart_pendulum, mismatched_cart_pendulum,
+                                random_starts, run_episode)
+
+DT = 0.05  # control period (s) of the controller and of the plant's zero-order hold
 
 
 def kick(plant, force=10.0):
@@ -38,7 +40,7 @@ def kick(plant, force=10.0):
 
 def run(model, plant, starts):
     """Success flags and times to upright of one controller on one plant."""
-    ctrl = SwingUpMPC(model)
+    ctrl = SwingUpMPC(model, dt=DT)
     episodes = [run_episode(ctrl, plant, x0) for x0 in starts]
     return [bool(e.success) for e in episodes], [float(e.time_to_upright) for e in episodes]
 
@@ -59,8 +61,8 @@ def main(argv=None):
     print("|---|---|---|---|---|---|")
     for signs in [(0.0, 0.0, 0.0), *itertools.product((-1.0, 1.0), repeat=3)]:
         f = 1.0 + 0.1 * np.array(signs)
-        true = systems.cart_pendulum(mc=f[0], mp=0.1 * f[1], L=f[2])
-        plant = Plant(true, 0.05)
+        true = mismatched_cart_pendulum(f)
+        plant = Plant(true, DT)
         row = {"factors": f.tolist(), "kick": kick(plant)}
         for name, model in (("identified", identified), ("exact", true)):
             ok, t_up = run(model, plant, starts)

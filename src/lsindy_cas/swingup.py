@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 __all__ = ["Episode", "Plant", "add_swingup_arguments", "evaluate", "identify_cart_pendulum",
-           "random_starts", "run_episode", "run_from_args", "run_swingup", "scenario_plant",
+           "mismatched_cart_pendulum", "random_starts", "run_episode", "run_from_args", "run_swingup", "scenario_plant",
            "scenario_stats"]
 
 ANGLE_TOL, RATE_TOL, WINDOW, T_END = 0.1, 0.5, 3.0, 10.0
@@ -223,6 +223,15 @@ def identify_cart_pendulum(system=None):
     return model, trajs
 
 
+def mismatched_cart_pendulum(factors):
+    """The true cart-pendulum with its cart mass, pole mass and pole length times ``factors``."""
+    from . import systems
+
+    p = systems.cart_pendulum().params
+    return systems.cart_pendulum(mc=p["mc"] * factors[0], mp=p["mp"] * factors[1],
+                                 L=p["L"] * factors[2])
+
+
 def scenario_plant(name, rng, dt):
     """The true plant of one episode of scenario ``name`` and its parameter factors (or None).
 
@@ -233,7 +242,7 @@ def scenario_plant(name, rng, dt):
 
     if name == "mismatch":
         f = 1.0 + 0.1 * rng.choice([-1.0, 1.0], size=3)
-        return Plant(systems.cart_pendulum(mc=f[0], mp=0.1 * f[1], L=f[2]), dt), f.tolist()
+        return Plant(mismatched_cart_pendulum(f), dt), f.tolist()
     return Plant(systems.cart_pendulum(), dt), None
 
 
