@@ -26,7 +26,12 @@ from ._ocp import SOLVERS, MultipleShootingNLP, rk4_step
 from ._lookahead import build_lookahead
 from ._rounding import ROUNDINGS, weights_from_value
 
-__all__ = ["DiscreteInputMPC", "MPCStats"]
+__all__ = ["DiscreteInputMPC", "MPCStats", "wrap_angle"]
+
+
+def wrap_angle(a):
+    """Angle(s) in radians mapped to ``[-pi, pi)``."""
+    return (np.asarray(a, dtype=float) + np.pi) % (2 * np.pi) - np.pi
 
 
 @dataclass
@@ -50,6 +55,9 @@ class MPCStats:
         when other processes compete for the cores.
     step_times : list of float
         Wall-clock seconds per controller call (solve + warm start + rounding + checks).
+    n_balanced : int
+        Steps whose level was chosen by a subclass's own rule instead of from the relaxed plan
+        (:class:`~lsindy_cas.mpc.SwingUpMPC`: the pulse balancer near the upright).
     iterations : list of int
         Solver iterations per solve.
     statuses : dict
@@ -59,6 +67,7 @@ class MPCStats:
     n_solves: int = 0
     n_failures: int = 0
     n_inexact: int = 0
+    n_balanced: int = 0
     solve_times: list = field(default_factory=list)
     solve_cpu_times: list = field(default_factory=list)
     step_times: list = field(default_factory=list)
@@ -76,7 +85,7 @@ class MPCStats:
         s = np.asarray(self.step_times) * 1e3
         pct = (lambda a, q: float(np.percentile(a, q)) if a.size else float("nan"))
         return {"n_solves": self.n_solves, "n_failures": self.n_failures,
-                "n_inexact": self.n_inexact,
+                "n_inexact": self.n_inexact, "n_balanced": self.n_balanced,
                 "solve_ms_median": pct(t, 50), "solve_ms_p99": pct(t, 99),
                 "solve_ms_max": float(t.max()) if t.size else float("nan"),
                 "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),
@@ -227,6 +236,7 @@ class DiscreteInputMPC:
             self._rounder = ROUNDINGS[rounding](self.levels.size)
         self._rollout = self.step_function.mapaccum(self.horizon)
         self.adapt = bool(adapt)
+        self._uses_correction = self._lookahead is not None  # subclasses may set it too
         self.adapt_forgetting = float(adapt_forgetting)
         self.adapt_max_gain = float(adapt_max_gain)
         if not 0 < self.adapt_forgetting <= 1:
@@ -321,10 +331,7 @@ class DiscreteInputMPC:
         # (the dynamics are affine in it), or that level alone if it is (almost) one
         w0 = weights_from_value(forces[0], self.levels)
         w0[w0 < 1e-2] = 0.0
-        if self.adapt:
-            gain, bias = self._theta[:, 0], self._theta[:, 1]
-        else:
-            gain = bias = np.zeros(self.n_state)
+        gain, bias = self._correction()
         cost = np.asarray(self._lookahead(x, states.T, forces[None, :], free[None, :],
                                           gain, bias)).ravel()
         first = np.repeat(w0 > 0, self.levels.size ** (self.depth - 1))
@@ -332,6 +339,16 @@ class DiscreteInputMPC:
         if not np.any(np.isfinite(cost)):
             return self._rounder(w0)
         return int(np.argmin(cost)) // self.levels.size ** (self.depth - 1)
+
+    def _own_level(self, x):
+        """Level index chosen by a subclass's own rule at state ``x``, or None (default)."""
+        return None
+
+    def _correction(self):
+        """Current online correction ``(gain, bias)`` of one-step predictions (zeros if off)."""
+        if self.adapt:
+            return self._theta[:, 0], self._theta[:, 1]
+        return np.zeros(self.n_state), np.zeros(self.n_state)
 
     def _check_state(self, x):
         try:
@@ -355,7 +372,7 @@ class DiscreteInputMPC:
         """
         t_start = time.perf_counter()
         x = self._check_state(x)
-        if self.adapt and self._lookahead is not None:
+        if self.adapt and self._uses_correction:
             self._update_correction(x)
         # robust solvers for a cold guess, and after failures (so that a run of failures
         # cannot keep replaying an exhausted plan)
@@ -383,7 +400,10 @@ class DiscreteInputMPC:
             self.stats.n_failures += 1
             z, lam_g, lam_x = z0, lam_g0, lam_x0
         controls, states, _ = self.nlp.unpack(z)
-        if self._lookahead is not None:
+        index = self._own_level(x)
+        if index is not None:
+            self.stats.n_balanced += 1
+        elif self._lookahead is not None:
             index = self._choose_by_lookahead(x, controls, states)
         else:
             index = self._rounder(self._weights(controls[0]))

@@ -24,6 +24,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from ._mpc_core import wrap_angle
+
 __all__ = ["Episode", "Plant", "add_swingup_arguments", "evaluate", "identify_cart_pendulum",
            "mismatched_cart_pendulum", "random_starts", "run_episode", "run_from_args", "run_swingup", "scenario_plant",
            "scenario_stats"]
@@ -66,10 +68,6 @@ class Plant:
         return np.asarray(self._integrator(x0=x, p=self._u)["xf"]).T
 
 
-def _wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
 def evaluate(t, X, *, upright=np.pi, cart=0, pole=1, track_limit=2.0, t_end=None):
     """Success, time to upright and track used of one trajectory.
 
@@ -97,7 +95,7 @@ def evaluate(t, X, *, upright=np.pi, cart=0, pole=1, track_limit=2.0, t_end=None
         ``max |x|`` (m).
     """
     t_end = t[-1] if t_end is None else t_end
-    good = (np.abs(_wrap(X[:, pole] - upright)) < ANGLE_TOL) & (np.abs(X[:, 2 + pole]) < RATE_TOL)
+    good = (np.abs(wrap_angle(X[:, pole] - upright)) < ANGLE_TOL) & (np.abs(X[:, 2 + pole]) < RATE_TOL)
     track_used = float(np.max(np.abs(X[:, cart])))
     bad = np.flatnonzero(~good)
     if bad.size == 0:

@@ -1,0 +1,251 @@
+"""Balancing a cart-pendulum at the upright with a coarse force set: enumerated pulse MPC.
+
+Near the upright one push of ``F`` held for ``dt`` changes the pole rate by about
+``F * dt / (m_c * L)`` whatever the pole mass: 0.50 rad/s for the nominal cart-pendulum with
+10 N and 50 ms, 0.62 rad/s with the cart 10 % lighter and the pole 10 % shorter, i.e. as large
+as the success band ``|theta_dot| < 0.5 rad/s`` itself.  A relaxed (continuous-force) plan knows
+nothing of this: it asks for a small correction of a nearly still pole, and any admissible level
+other than zero then overshoots the band (``benchmarks/swingup_ceiling.py`` measured 65 % success
+on such plants even with their exact equations).
+
+:class:`PulseBalancer` plans with the pushes themselves.  It enumerates every input sequence over
+``horizon`` intervals that contains at most ``max_pushes`` non-zero levels, predicts each with
+the model's discrete dynamics linearised at the upright (one matrix product for all sequences,
+with the MPC's online gain/offset correction applied), and chooses lexicographically:
+
+1. the least violation of the bands: pole rate ``|theta_dot| <= rate_band``, pole angle
+   ``|phi| <= angle_band`` and cart ``|x| <= track_limit - track_margin`` at every predicted
+   step;
+2. among those, the least cost: ``lean_weight * dt * sum (phi_k - phi_ref)^2`` + ``push_weight``
+   per push + ``mode_weight * s_N^2``, where ``s`` is the pole's unstable mode (a left
+   eigenvector of the linearised step) and ``phi_ref`` a reference lean of the pole.
+
+A pole leaning by ``phi`` while balanced on average accelerates the cart by ``kappa * phi``
+(``kappa`` from the linearised ODE, about ``-g`` for the usual conventions), so the reference
+lean is a PD law that returns the cart to the centre:
+``phi_ref = -(w^2 x + 2 zeta w x_dot) / kappa``, clipped to ``+-max_lean``.  The result is a
+limit cycle about ``phi_ref``: the controller waits while gravity builds the pole rate up, then
+one push reverses it inside the band.
+
+The balancer acts only near the upright (``|phi| <= region[0]``, ``|theta_dot| <= region[1]``).
+It takes over there only if the cart can still be stopped by leaning,
+``|x + x_dot |x_dot| / (2 a)|`` within the track with ``a = brake_fraction * |kappa| * max_lean``
+(a fast cart is left to the relaxed MPC, which may swing the pole wider), and it keeps the
+decisions until the pole leaves the region.  Elsewhere the caller's own choice applies.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import casadi as ca
+import numpy as np
+
+from ._mpc_core import wrap_angle
+
+__all__ = ["PulseBalancer"]
+
+#: largest number of enumerated sequences before ``max_pushes`` is lowered
+MAX_SEQUENCES = 20000
+
+
+def _sequences(horizon, max_pushes, n_pushes):
+    """Level-index matrix of all sequences with at most ``max_pushes`` non-zero entries.
+
+    Entry 0 stands for the zero level, ``1..n_pushes`` for the non-zero ones; shape
+    ``(n_sequences, horizon)``, the all-zero sequence first.
+    """
+    rows = [np.zeros(horizon, dtype=int)]
+    for p in range(1, max_pushes + 1):
+        for where in itertools.combinations(range(horizon), p):
+            for which in itertools.product(range(1, n_pushes + 1), repeat=p):
+                row = np.zeros(horizon, dtype=int)
+                row[list(where)] = which
+                rows.append(row)
+    return np.array(rows)
+
+
+def _count(horizon, max_pushes, n_pushes):
+    return sum(math.comb(horizon, p) * n_pushes**p for p in range(max_pushes + 1))
+
+
+class PulseBalancer:
+    """Choose the level of a cart-pendulum's cart force near the upright (module docstring).
+
+    Parameters
+    ----------
+    step : casadi.Function
+        The model's discrete map ``F(x (4,), u (2,)) -> x_next`` over one control period.
+    ode : casadi.Function
+        The model's ODE ``(x (4,), u (2,)) -> xdot``, for the lean-to-acceleration gain.
+    levels : ndarray, shape (n_levels,)
+        Admissible forces, increasing; must contain 0 (waiting is the balancer's main move).
+    cart_index, pole_index : int
+        Positions of the cart and the pole in ``q``; ``x = [q, q_dot]``.
+    upright : float
+        Upright pole angle (rad).
+    track_limit : float
+        Allowed ``|x|`` of the cart (m).
+    dt : float
+        Control period (s).
+    horizon : int
+        Enumerated intervals.
+    max_pushes : int
+        Most non-zero levels per sequence (lowered if more than ``MAX_SEQUENCES`` sequences).
+    rate_band, angle_band : float
+        Bands the predicted pole rate (rad/s) and angle from upright (rad) are kept in.
+    region : (float, float)
+        ``(|phi|, |theta_dot|)`` below which the balancer acts.
+    max_lean : float
+        Bound on the reference lean (rad).
+    cart_frequency, cart_damping : float
+        Natural frequency (rad/s) and damping ratio of the cart's return to the centre.
+    lean_weight, push_weight, mode_weight : float
+        Weights of the cost terms (module docstring).
+    track_margin : float
+        The cart band is ``|x| <= track_limit - track_margin``.
+    brake_fraction : float
+        Fraction of the largest lean acceleration assumed available to stop the cart when
+        deciding whether to take over.
+    """
+
+    def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
+                 horizon=16, max_pushes=3, rate_band=0.42, angle_band=0.08, region=(0.12, 0.7),
+                 max_lean=0.04, cart_frequency=1.0, cart_damping=1.0, lean_weight=1e3,
+                 push_weight=1e-3, mode_weight=1.0, track_margin=0.25, brake_fraction=0.5):
+        levels = np.asarray(levels, dtype=float)
+        zero = np.flatnonzero(levels == 0.0)
+        if zero.size != 1:
+            raise ValueError(f"the balancer needs 0 in the force set, got {levels.tolist()}.")
+        for name, value in (("horizon", horizon), ("max_pushes", max_pushes)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{name} must be a positive integer, got {value!r}.")
+        positive = {"rate_band": rate_band, "angle_band": angle_band, "max_lean": max_lean,
+                    "cart_frequency": cart_frequency, "cart_damping": cart_damping,
+                    "lean_weight": lean_weight, "brake_fraction": brake_fraction}
+        nonneg = {"push_weight": push_weight, "mode_weight": mode_weight,
+                  "track_margin": track_margin}
+        try:
+            region = tuple(float(r) for r in region)
+        except (TypeError, ValueError):
+            raise ValueError(f"region must be two positive numbers, got {region!r}.") from None
+        for name, value in {**positive, **nonneg}.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
+                    or not math.isfinite(value) or value < 0 or (name in positive and value == 0):
+                kind = "positive" if name in positive else "non-negative"
+                raise ValueError(f"{name} must be a finite {kind} number, got {value!r}.")
+        if len(region) != 2 or not all(math.isfinite(r) and r > 0 for r in region):
+            raise ValueError(f"region must be two positive numbers, got {region!r}.")
+        if track_margin >= track_limit:
+            raise ValueError(f"track_margin must be below track_limit, got {track_margin!r}.")
+
+        self.ic, self.ip, self.dt = int(cart_index), int(pole_index), float(dt)
+        self.track_limit = float(track_limit)
+        self.rate_band, self.angle_band, self.region = rate_band, angle_band, region
+        self.max_lean, self.track_margin = max_lean, track_margin
+        self.brake_fraction = brake_fraction
+        self.wn, self.zeta = cart_frequency, cart_damping
+        self.lean_weight, self.push_weight, self.mode_weight = lean_weight, push_weight, mode_weight
+        self.x_ref = np.zeros(4)
+        self.x_ref[self.ip] = upright
+
+        # linearisations at the upright: the discrete step (predictions) and the ODE (kappa)
+        xs, us = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
+        jac = ca.Function("upright_jacobians", [xs, us], [ca.jacobian(step(xs, us), xs),
+                                            ca.jacobian(step(xs, us), us),
+                                            ca.jacobian(ode(xs, us), xs),
+                                            ca.jacobian(ode(xs, us), us)])
+        A, B, Ac, Bc = (np.asarray(m, dtype=float) for m in jac(self.x_ref, np.zeros(2)))
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(Ac))):
+            raise ValueError("the model's dynamics are not finite at the upright.")
+        self.A, self.B = A, B[:, self.ic]
+        ic, ip = self.ic, self.ip
+        b_pole = Bc[2 + ip, ic]
+        if abs(b_pole) < 1e-12:
+            raise ValueError("the cart force does not move the pole at the upright.")
+        # cart acceleration per unit lean when the force keeps the pole's acceleration at zero
+        self.kappa = float(Ac[2 + ic, ip] - Bc[2 + ic, ic] * Ac[2 + ip, ip] / b_pole)
+        if abs(self.kappa) < 1e-9:
+            raise ValueError("a lean of the pole does not accelerate the cart at the upright.")
+        eigval, eigvec = np.linalg.eig(A)
+        k = int(np.argmax(np.abs(eigval)))
+        left = np.linalg.inv(eigvec)[k].real
+        self.mode = left / np.max(np.abs(left))
+
+        pushes = np.delete(levels, zero[0])
+        while max_pushes > 1 and _count(horizon, max_pushes, pushes.size) > MAX_SEQUENCES:
+            max_pushes -= 1
+        self.horizon, self.max_pushes = int(horizon), int(max_pushes)
+        values = np.concatenate([[0.0], pushes])
+        index_of = np.concatenate([zero, np.delete(np.arange(levels.size), zero[0])])
+        seq = _sequences(self.horizon, self.max_pushes, pushes.size)
+        self.U = values[seq]                         # (n_seq, H) forces
+        self.first = index_of[seq[:, 0]]             # level index of each first move
+        self.n_pushes = (seq != 0).sum(axis=1)
+        j, k = np.meshgrid(np.arange(self.horizon), np.arange(self.horizon), indexing="ij")
+        self._causal = k >= j                        # input j acts on predicted state k
+        self._lag = np.where(self._causal, k - j, 0)
+        self._comps = [ip, 2 + ip, ic]               # angle, rate, cart position
+        self.reset()
+
+    def reference_lean(self, e):
+        """Lean (rad) that returns the cart to the centre, from the error state ``e``."""
+        phi = -(self.wn**2 * e[self.ic] + 2 * self.zeta * self.wn * e[2 + self.ic]) / self.kappa
+        return float(np.clip(phi, -self.max_lean, self.max_lean))
+
+    def reset(self):
+        """Forget whether the balancer was acting (call between episodes)."""
+        self.engaged = False
+
+    def active(self, e):
+        """Whether the balancer acts at error state ``e``.
+
+        It takes over near the upright if leaning by ``brake_fraction * max_lean`` would stop
+        the cart inside the track, and then keeps the decisions until the pole leaves the
+        region: its own pushes swing the cart speed by ``F dt / m``, and handing a half-done
+        pulse cycle back to the relaxed plan pushes from the wrong state.
+        """
+        if abs(e[self.ip]) > self.region[0] or abs(e[2 + self.ip]) > self.region[1]:
+            self.engaged = False
+        elif not self.engaged:
+            brake = self.brake_fraction * abs(self.kappa) * self.max_lean
+            v = e[2 + self.ic]
+            stop = e[self.ic] + v * abs(v) / (2 * brake)
+            self.engaged = bool(abs(stop) <= self.track_limit - self.track_margin)
+        return self.engaged
+
+    def __call__(self, x, gain=None, bias=None):
+        """Level index to apply at state ``x`` (4,), or None where the balancer does not act.
+
+        ``gain`` and ``bias`` (4,) correct the predictions as in the MPC's lookahead:
+        ``x+ = A x + (1 + gain) * B u + bias`` (elementwise).
+        """
+        e = np.asarray(x, dtype=float) - self.x_ref
+        e[self.ip] = wrap_angle(e[self.ip])
+        if not self.active(e):
+            return None
+        gain = np.zeros(4) if gain is None else np.asarray(gain, dtype=float)
+        bias = np.zeros(4) if bias is None else np.asarray(bias, dtype=float)
+        H = self.horizon
+        b = self.B * (1.0 + gain)
+        free, impulse = np.empty((H, 4)), np.empty((H, 4))
+        z = e
+        for k in range(H):
+            z = self.A @ z + bias
+            free[k], impulse[k] = z, b
+            b = self.A @ b
+        # response of predicted state k to a unit input at interval j: impulse[k - j]
+        resp = np.where(self._causal[:, :, None], impulse[self._lag], 0.0)   # (H, H, 4)
+        comps = resp[:, :, self._comps].reshape(H, 3 * H)
+        pred = (self.U @ comps).reshape(-1, H, 3) + free[None, :, self._comps]
+        phi, rate, cart = pred[:, :, 0], pred[:, :, 1], pred[:, :, 2]
+        viol = (np.maximum(np.abs(rate) - self.rate_band, 0.0) ** 2
+                + np.maximum(np.abs(phi) - self.angle_band, 0.0) ** 2
+                + np.maximum(np.abs(cart) - (self.track_limit - self.track_margin), 0.0) ** 2
+                ).sum(axis=1)
+        end = free[-1] + self.U @ resp[:, -1, :]                              # (n_seq, 4)
+        cost = (self.lean_weight * self.dt * ((phi - self.reference_lean(e)) ** 2).sum(axis=1)
+                + self.push_weight * self.n_pushes + self.mode_weight * (end @ self.mode) ** 2)
+        cost = np.where(viol <= viol.min() + 1e-12, cost, np.inf)
+        return int(self.first[int(np.argmin(cost))])
