@@ -10,8 +10,9 @@ on such plants even with their exact equations).
 
 :class:`PulseBalancer` plans with the pushes themselves.  It enumerates every input sequence over
 ``horizon`` intervals that contains at most ``max_pushes`` non-zero levels, predicts each with
-the model's discrete dynamics linearised at the upright (one matrix product for all sequences,
-with the MPC's online gain/offset correction applied), and chooses lexicographically:
+the model's discrete dynamics linearised at the upright (by superposition: each prediction is
+the free response plus at most ``max_pushes`` gathered push responses, with the MPC's online
+gain/offset correction applied), and chooses lexicographically:
 
 1. the least violation of the bands: pole rate ``|theta_dot| <= rate_band``, pole angle
    ``|phi| <= angle_band`` and cart ``|x| <= track_limit - track_margin`` at every predicted
@@ -177,16 +178,22 @@ class PulseBalancer:
         while max_pushes > 1 and _count(horizon, max_pushes, pushes.size) > MAX_SEQUENCES:
             max_pushes -= 1
         self.horizon, self.max_pushes = int(horizon), int(max_pushes)
-        values = np.concatenate([[0.0], pushes])
         index_of = np.concatenate([zero, np.delete(np.arange(levels.size), zero[0])])
         seq = _sequences(self.horizon, self.max_pushes, pushes.size)
-        self.U = values[seq]                         # (n_seq, H) forces
         self.first = index_of[seq[:, 0]]             # level index of each first move
         self.n_pushes = (seq != 0).sum(axis=1)
+        self._push_values = pushes
+        # sequences as at most max_pushes rows of a table indexed 1 + (push - 1) * H + time
+        # (row 0: no push), so that a prediction is a sum of a few gathered rows
+        self._pushes = np.zeros((seq.shape[0], self.max_pushes), dtype=int)
+        for r, row in enumerate(seq):
+            when = np.flatnonzero(row)
+            self._pushes[r, :when.size] = 1 + (row[when] - 1) * self.horizon + when
         j, k = np.meshgrid(np.arange(self.horizon), np.arange(self.horizon), indexing="ij")
         self._causal = k >= j                        # input j acts on predicted state k
         self._lag = np.where(self._causal, k - j, 0)
         self._comps = [ip, 2 + ip, ic]               # angle, rate, cart position
+        self._bands = np.repeat([angle_band, rate_band, track_limit - track_margin], horizon)
         self.reset()
 
     def reference_lean(self, e):
@@ -237,15 +244,22 @@ class PulseBalancer:
             b = self.A @ b
         # response of predicted state k to a unit input at interval j: impulse[k - j]
         resp = np.where(self._causal[:, :, None], impulse[self._lag], 0.0)   # (H, H, 4)
-        comps = resp[:, :, self._comps].reshape(H, 3 * H)
-        pred = (self.U @ comps).reshape(-1, H, 3) + free[None, :, self._comps]
-        phi, rate, cart = pred[:, :, 0], pred[:, :, 1], pred[:, :, 2]
-        viol = (np.maximum(np.abs(rate) - self.rate_band, 0.0) ** 2
-                + np.maximum(np.abs(phi) - self.angle_band, 0.0) ** 2
-                + np.maximum(np.abs(cart) - (self.track_limit - self.track_margin), 0.0) ** 2
-                ).sum(axis=1)
-        end = free[-1] + self.U @ resp[:, -1, :]                              # (n_seq, 4)
-        cost = (self.lean_weight * self.dt * ((phi - self.reference_lean(e)) ** 2).sum(axis=1)
-                + self.push_weight * self.n_pushes + self.mode_weight * (end @ self.mode) ** 2)
-        cost = np.where(viol <= viol.min() + 1e-12, cost, np.inf)
+        # predicted angle, rate and cart position of every sequence, component-major (n_seq, 3H)
+        unit = resp[:, :, self._comps].transpose(0, 2, 1).reshape(H, 3 * H)
+        table = np.zeros((1 + self._push_values.size * H, 3 * H))
+        table[1:] = (self._push_values[:, None, None] * unit).reshape(-1, 3 * H)
+        pred = free[:, self._comps].T.reshape(-1) + table[self._pushes[:, 0]]
+        for m in range(1, self.max_pushes):
+            pred += table[self._pushes[:, m]]
+        over = np.abs(pred)
+        over -= self._bands
+        np.maximum(over, 0.0, out=over)
+        viol = np.einsum("ij,ij->i", over, over)
+        lean = pred[:, :H] - self.reference_lean(e)
+        unit_mode = resp[:, -1, :] @ self.mode                                # (H,)
+        mode_table = np.concatenate([[0.0], (self._push_values[:, None] * unit_mode).ravel()])
+        mode = free[-1] @ self.mode + mode_table[self._pushes].sum(axis=1)    # unstable mode at H
+        cost = (self.lean_weight * self.dt * np.einsum("ij,ij->i", lean, lean)
+                + self.push_weight * self.n_pushes + self.mode_weight * mode**2)
+        cost[viol > viol.min() + 1e-12] = np.inf
         return int(self.first[int(np.argmin(cost))])
