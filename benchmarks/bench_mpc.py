@@ -27,26 +27,31 @@ from lsindy_cas.swingup import (identify_cart_pendulum, random_starts, run_episo
                                 scenario_plant, scenario_stats)
 
 CONFIGS = {
-    # name: (SwingUpMPC options, what it shows); "default" is also run for robustness
+    # name: (SwingUpMPC options, what it shows); "default" is also run for robustness.
+    # The discrete-force strategies are compared as such (balance=False: the rule picks the
+    # level everywhere); the solvers with the default pulse balancer near the upright.
+    "sqp+continuous+lookahead+balancer": ({"solver": "sqp", "relaxation": "continuous",
+                                           "rounding": "lookahead"}, "default"),
     "sqp+continuous+lookahead": ({"solver": "sqp", "relaxation": "continuous",
-                                  "rounding": "lookahead"}, "default"),
-    "sqp+poc+lookahead": ({"solver": "sqp", "relaxation": "poc", "rounding": "lookahead"},
-                          "POC weights, lookahead"),
-    "sqp+poc+sur": ({"solver": "sqp", "relaxation": "poc", "rounding": "sur"},
+                                  "rounding": "lookahead", "balance": False},
+                                 "lookahead everywhere (no balancer)"),
+    "sqp+poc+lookahead": ({"solver": "sqp", "relaxation": "poc", "rounding": "lookahead",
+                           "balance": False}, "POC weights, lookahead"),
+    "sqp+poc+sur": ({"solver": "sqp", "relaxation": "poc", "rounding": "sur", "balance": False},
                     "POC weights, sum-up rounding carried across steps"),
-    "sqp+poc+nearest": ({"solver": "sqp", "relaxation": "poc", "rounding": "nearest"},
-                        "POC weights, largest weight (no memory)"),
+    "sqp+poc+nearest": ({"solver": "sqp", "relaxation": "poc", "rounding": "nearest",
+                         "balance": False}, "POC weights, largest weight (no memory)"),
     "sqp+continuous+nearest": ({"solver": "sqp", "relaxation": "continuous",
-                                "rounding": "nearest"},
+                                "rounding": "nearest", "balance": False},
                                "plain rounding of a continuous solution"),
-    "sqp-gn+continuous+lookahead": ({"solver": "sqp-gn", "relaxation": "continuous",
-                                     "rounding": "lookahead"}, "Gauss-Newton SQP"),
-    "fatrop+continuous+lookahead": ({"solver": "fatrop", "relaxation": "continuous",
-                                     "rounding": "lookahead"}, "fatrop"),
-    "ipopt+continuous+lookahead": ({"solver": "ipopt", "relaxation": "continuous",
-                                    "rounding": "lookahead"}, "IPOPT"),
+    "sqp-gn+continuous+lookahead+balancer": ({"solver": "sqp-gn", "relaxation": "continuous",
+                                              "rounding": "lookahead"}, "Gauss-Newton SQP"),
+    "fatrop+continuous+lookahead+balancer": ({"solver": "fatrop", "relaxation": "continuous",
+                                              "rounding": "lookahead"}, "fatrop"),
+    "ipopt+continuous+lookahead+balancer": ({"solver": "ipopt", "relaxation": "continuous",
+                                             "rounding": "lookahead"}, "IPOPT"),
 }
-DEFAULT = "sqp+continuous+lookahead"
+DEFAULT = "sqp+continuous+lookahead+balancer"
 ROBUSTNESS = ("mismatch", "noise")
 
 

@@ -14,6 +14,10 @@ rest at upright, against the success band of +-0.5 rad/s.  Prints a markdown tab
 
     python benchmarks/swingup_ceiling.py                # 20 starts per plant (~7 min on 2 cores)
     python benchmarks/swingup_ceiling.py --starts 2     # quick look
+    python benchmarks/swingup_ceiling.py --balance off  # without the pulse balancer (before it)
+
+``--balance off`` builds the controllers with ``balance=False``: the force is then chosen from
+the relaxed plan everywhere, also near the upright (``swingup_ceiling_no_balance.json``).
 """
 
 from __future__ import annotations
@@ -38,9 +42,9 @@ def kick(plant, force=10.0):
     return float(abs(plant.step(np.array([0.0, np.pi, 0.0, 0.0]), force)[-1, 3]))
 
 
-def run(model, plant, starts):
+def run(model, plant, starts, balance=True):
     """Success flags and times to upright of one controller on one plant."""
-    ctrl = SwingUpMPC(model, dt=DT)
+    ctrl = SwingUpMPC(model, dt=DT, balance=balance)
     episodes = [run_episode(ctrl, plant, x0) for x0 in starts]
     return [bool(e.success) for e in episodes], [float(e.time_to_upright) for e in episodes]
 
@@ -49,11 +53,17 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--starts", type=int, default=20, help="random starts per plant")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random starts")
-    parser.add_argument("--json", default=str(Path(__file__).parent / "results" /
-                                              "swingup_ceiling.json"))
+    parser.add_argument("--balance", choices=("on", "off"), default="on",
+                        help="pulse balancer near the upright (default on)")
+    parser.add_argument("--json", help="output (default benchmarks/results/"
+                        "swingup_ceiling.json, or swingup_ceiling_no_balance.json)")
     args = parser.parse_args(argv)
     if args.starts < 1:
         parser.error("--starts must be >= 1")
+    balance = args.balance == "on"
+    if args.json is None:
+        args.json = str(Path(__file__).parent / "results" /
+                        ("swingup_ceiling.json" if balance else "swingup_ceiling_no_balance.json"))
     identified, _ = identify_cart_pendulum()
     starts = random_starts(args.starts, args.seed)
     rows, t0 = [], time.perf_counter()
@@ -65,7 +75,7 @@ def main(argv=None):
         plant = Plant(true, DT)
         row = {"factors": f.tolist(), "kick": kick(plant)}
         for name, model in (("identified", identified), ("exact", true)):
-            ok, t_up = run(model, plant, starts)
+            ok, t_up = run(model, plant, starts, balance)
             row[name] = {"successes": int(sum(ok)), "episodes": len(ok),
                          "failed_starts": [i for i, s in enumerate(ok) if not s],
                          "median_time_to_upright": float(np.median(t_up))}
@@ -80,6 +90,7 @@ def main(argv=None):
           f"{time.perf_counter() - t0:.0f} s")
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
     Path(args.json).write_text(json.dumps({"starts": args.starts, "seed": args.seed,
+                                           "balance": balance,
                                            "rows": rows, "total": total, "episodes": n},
                                           indent=1))
 
