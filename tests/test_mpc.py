@@ -338,6 +338,29 @@ def test_balancer_hands_over_away_from_the_top_or_with_a_runaway_cart(hard):
     assert b([0.0, np.pi - 0.5, 0.0, 0.0]) is None and not b.engaged
 
 
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_balancer_keeps_the_track_before_the_rate_band(hard, sign):
+    """Near the end of the track, running outward, with the pole falling the way that needs an
+    outward push: the cart band outranks the rate band (track_weight), so the cart stays on the
+    track; weighted like the pole bands, the reversing push runs it to 2.15 m."""
+    system, _ = hard
+    x0 = np.array([-1.6, np.pi + 0.02, -0.5, 0.2]) * [sign, 1, sign, sign]
+    x0[1] = np.pi + sign * 0.02
+    for track_weight, inside in ((10.0, True), (1.0, False)):
+        ctrl = SwingUpMPC(system, balance={"track_weight": track_weight})
+        b, x, track = ctrl.balancer, x0.copy(), abs(x0[0])
+        b.engaged = True
+        for _ in range(30):  # 1.5 s, or until the pole leaves the balancer's region
+            level = b(x)
+            if level is None:
+                break
+            u = np.zeros(2)
+            u[ctrl.cart_index] = FORCES[level]
+            x = np.asarray(ctrl.step_function(x, u)).ravel()
+            track = max(track, abs(x[0]))
+        assert (track < ctrl.track_limit) == inside, (track_weight, track)
+
+
 def test_balanced_episode_on_the_hard_plant_keeps_the_band(hard):
     """Start 2 of 24 (seed 7) on this plant failed before the balancer: the relaxed plan's
     'tilt then catch' pushed from a still pole, 0.51 rad/s at 8.45 s."""

@@ -16,7 +16,8 @@ gain/offset correction applied), and chooses lexicographically:
 
 1. the least violation of the bands: pole rate ``|theta_dot| <= rate_band``, pole angle
    ``|phi| <= angle_band`` and cart ``|x| <= track_limit - track_margin`` at every predicted
-   step;
+   step (sum of squared excesses, the cart's weighted ``track_weight`` times: leaving the track
+   ends an episode, a pole rate outside the band only delays settling);
 2. among those, the least cost: ``lean_weight * dt * sum (phi_k - phi_ref)^2`` + ``push_weight``
    per push + ``mode_weight * s_N^2``, where ``s`` is the pole's unstable mode (a left
    eigenvector of the linearised step) and ``phi_ref`` a reference lean of the pole.
@@ -106,6 +107,8 @@ class PulseBalancer:
         Weights of the cost terms (module docstring).
     track_margin : float
         The cart band is ``|x| <= track_limit - track_margin``.
+    track_weight : float
+        Weight of the cart band's excess (m) relative to the pole bands' (rad, rad/s).
     brake_fraction : float
         Fraction of the largest lean acceleration assumed available to stop the cart when
         deciding whether to take over.
@@ -114,7 +117,8 @@ class PulseBalancer:
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=16, max_pushes=3, rate_band=0.42, angle_band=0.08, region=(0.12, 0.7),
                  max_lean=0.04, cart_frequency=1.0, cart_damping=1.0, lean_weight=1e3,
-                 push_weight=1e-3, mode_weight=1.0, track_margin=0.25, brake_fraction=0.5):
+                 push_weight=1e-3, mode_weight=1.0, track_margin=0.25, track_weight=10.0,
+                 brake_fraction=0.5):
         levels = np.asarray(levels, dtype=float)
         zero = np.flatnonzero(levels == 0.0)
         if zero.size != 1:
@@ -124,7 +128,8 @@ class PulseBalancer:
                 raise ValueError(f"{name} must be a positive integer, got {value!r}.")
         positive = {"rate_band": rate_band, "angle_band": angle_band, "max_lean": max_lean,
                     "cart_frequency": cart_frequency, "cart_damping": cart_damping,
-                    "lean_weight": lean_weight, "brake_fraction": brake_fraction}
+                    "lean_weight": lean_weight, "brake_fraction": brake_fraction,
+                    "track_weight": track_weight}
         nonneg = {"push_weight": push_weight, "mode_weight": mode_weight,
                   "track_margin": track_margin}
         try:
@@ -194,6 +199,7 @@ class PulseBalancer:
         self._lag = np.where(self._causal, k - j, 0)
         self._comps = [ip, 2 + ip, ic]               # angle, rate, cart position
         self._bands = np.repeat([angle_band, rate_band, track_limit - track_margin], horizon)
+        self._band_weights = np.repeat([1.0, 1.0, track_weight**2], horizon)
         self.reset()
 
     def reference_lean(self, e):
@@ -254,7 +260,7 @@ class PulseBalancer:
         over = np.abs(pred)
         over -= self._bands
         np.maximum(over, 0.0, out=over)
-        viol = np.einsum("ij,ij->i", over, over)
+        viol = np.einsum("ij,ij,j->i", over, over, self._band_weights)
         lean = pred[:, :H] - self.reference_lean(e)
         unit_mode = resp[:, -1, :] @ self.mode                                # (H,)
         mode_table = np.concatenate([[0.0], (self._push_values[:, None] * unit_mode).ravel()])

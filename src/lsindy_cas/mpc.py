@@ -110,9 +110,9 @@ class SwingUpMPC(DiscreteInputMPC):
         upright) instead of from the relaxed plan; a dict passes options to it (``horizon``,
         ``max_pushes``, ``rate_band``, ``angle_band``, ``region``, ``max_lean``,
         ``cart_frequency``, ``cart_damping``, ``lean_weight``, ``push_weight``,
-        ``mode_weight``, ``brake_fraction``).  Waiting is the balancer's main move, so
-        ``balance=True`` uses it only if ``force_set`` contains 0 (a dict without 0 in the
-        set is an error).  With ±10 % mass/length mismatch it raised swing-up success on the
+        ``mode_weight``, ``track_weight``, ``brake_fraction``).  Waiting is the balancer's
+        main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
+        without 0 in the set is an error).  With ±10 % mass/length mismatch it raised swing-up success on the
         8 mismatched plants × 20 starts from 145/160 to 158/160
         (``benchmarks/swingup_ceiling.py``).
     **options
