@@ -173,6 +173,35 @@ def test_failed_solve_falls_back_to_the_shifted_previous_plan(model):
     assert not ctrl.plan_["success"]
 
 
+def test_capped_solves_within_inexact_tol_are_applied_not_failed(model, plant):
+    """A solve stopped by the iteration cap is applied ("inexact") exactly when its iterate's
+    constraint violation is within inexact_tol; otherwise it is a failure (fallback)."""
+    seen = []
+    for tol in (1e-3, 1e-6):
+        ctrl = SwingUpMPC(model, max_iter=1, inexact_tol=tol)
+        solve = ctrl.nlp.solve
+
+        def record(*args, **kwargs):
+            out = solve(*args, **kwargs)
+            if out[0] != "converged":
+                seen.append((tol, out[0], ctrl.nlp.last_violation))
+            return out
+
+        ctrl.nlp.solve = record
+        x = np.array([0.0, 0.0, 0.0, 0.0])
+        for _ in range(12):
+            x = plant.step(x, ctrl(x))[-1]
+        assert ctrl.stats.n_inexact == sum(1 for t, o, _ in seen if t == tol and o == "inexact")
+    for tol, outcome, viol in seen:
+        assert (outcome == "inexact") == (viol <= tol), (tol, outcome, viol)
+    # the case the tolerance is for: violations between the strict and the default tolerance
+    assert any(1e-6 < viol <= 1e-3 for _, _, viol in seen)
+    with pytest.raises(ValueError, match="inexact_tol"):
+        SwingUpMPC(model, inexact_tol=0.0)
+    with pytest.raises(TypeError, match="inexact_tol"):
+        SwingUpMPC(model, inexact_tol="1e-3")
+
+
 def test_a_model_that_returns_nan_never_crashes_the_controller():
     x, u = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
     true = systems.cart_pendulum().ode()

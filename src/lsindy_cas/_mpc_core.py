@@ -47,7 +47,8 @@ class MPCStats:
         previous plan instead.
     n_inexact : int
         Solves stopped by the iteration cap whose iterate satisfied every constraint (dynamics,
-        bounds to 1e-6); applied when ``accept_inexact=True``, else counted as failures too.
+        bounds) to ``inexact_tol``; applied when ``accept_inexact=True``, else counted as
+        failures too.
     solve_times : list of float
         Wall-clock seconds per solve (the solver call only).
     solve_cpu_times : list of float
@@ -169,8 +170,15 @@ class DiscreteInputMPC:
     tol : float
         Solver tolerance.
     accept_inexact : bool
-        Apply a capped solve's iterate if it satisfies every constraint (counted in
-        ``stats.n_inexact``); otherwise such a solve is a failure (fallback).
+        Apply a capped solve's iterate if it satisfies every constraint to ``inexact_tol``
+        (counted in ``stats.n_inexact``); otherwise such a solve is a failure (fallback).
+    inexact_tol : float
+        Constraint violation (shooting defects in state units, bounds) up to which a capped
+        solve's iterate is applied.  Every warm SQP failure in the swing-up benchmarks was the
+        iteration cap with violations of 1e-6 to 1.1e-3 (median 5e-5), far below the model's
+        own one-step error under ±10 % mismatch; accepting them (1e-3 instead of 1e-6) cut
+        fallbacks, and the IPOPT recoveries that follow them, from 45 to 2 (nominal, 20
+        starts) and the solve-time p99 from 37 to about 22 ms, with the same successes.
     recover_after : int
         After this many failed solves in a row the next solve is a recovery solve (IPOPT)
         from the shifted plan.
@@ -191,7 +199,8 @@ class DiscreteInputMPC:
     def __init__(self, ode, levels, *, input_index, stage_residual, terminal_residual, dt,
                  horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
                  solver="sqp", relaxation="continuous", rounding="lookahead", depth=4,
-                 max_iter=10, tol=1e-4, accept_inexact=True, lookahead_penalty=None,
+                 max_iter=10, tol=1e-4, accept_inexact=True, inexact_tol=1e-3,
+                 lookahead_penalty=None,
                  recover_after=1, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5):
         if not isinstance(ode, ca.Function):
             raise TypeError(f"ode must be a casadi.Function, got {type(ode).__name__}.")
@@ -217,7 +226,8 @@ class DiscreteInputMPC:
         self.nlp = MultipleShootingNLP(
             self.step_function, self.n_state, self.n_input, self.input_index, self.levels,
             self.horizon, self.dt, stage_residual, terminal_residual, float(input_weight), lb,
-            ub, relaxation, solver, int(max_iter), float(tol))
+            ub, relaxation, solver, int(max_iter), float(tol),
+            inexact_tol=_check_positive("inexact_tol", inexact_tol))
         self.solver, self.relaxation, self.rounding = solver, relaxation, rounding
         self.accept_inexact = bool(accept_inexact)
         self.recover_after = int(recover_after)

@@ -87,12 +87,16 @@ class MultipleShootingNLP:
         Convergence tolerance.
     slack_weight : float
         Weight of ``s + s^2`` per stage for the soft state bounds.
+    inexact_tol : float
+        Largest constraint violation of a capped solve's iterate that still counts as
+        ``"inexact"`` rather than ``"failed"`` (see :meth:`solve`).
     """
 
     def __init__(self, step, n_state, n_input, input_index, levels, horizon, dt,
                  stage_residual, terminal_residual, input_weight, state_lb, state_ub,
-                 relaxation, solver, max_iter, tol, slack_weight=1e5):
+                 relaxation, solver, max_iter, tol, slack_weight=1e5, inexact_tol=1e-6):
         self.n_state, self.horizon, self.relaxation = n_state, horizon, relaxation
+        self.inexact_tol = float(inexact_tol)
         self.levels = np.asarray(levels, dtype=float)
         n_c = self.levels.size if relaxation == "poc" else 1
         self.n_control = n_c
@@ -263,7 +267,7 @@ class MultipleShootingNLP:
         -------
         outcome : {"converged", "inexact", "failed"}
             ``"inexact"``: the iteration cap was hit but the iterate satisfies every constraint
-            to ``1e-6`` (a dynamically consistent, feasible plan).
+            to ``inexact_tol`` (a nearly dynamically consistent, feasible plan).
         z, lam_g, lam_x : ndarray
             Final iterate.
         iters : int
@@ -288,7 +292,7 @@ class MultipleShootingNLP:
         self.last_violation = viol
         if finite and converged:
             outcome = "converged"
-        elif finite and capped and viol <= 1e-6:
+        elif finite and capped and viol <= self.inexact_tol:
             outcome = "inexact"
         else:
             outcome = "failed"
