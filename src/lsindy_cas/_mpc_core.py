@@ -174,11 +174,14 @@ class DiscreteInputMPC:
         (counted in ``stats.n_inexact``); otherwise such a solve is a failure (fallback).
     inexact_tol : float
         Constraint violation (shooting defects in state units, bounds) up to which a capped
-        solve's iterate is applied.  Every warm SQP failure in the swing-up benchmarks was the
-        iteration cap with violations of 1e-6 to 1.1e-3 (median 5e-5), far below the model's
-        own one-step error under ±10 % mismatch; accepting them (1e-3 instead of 1e-6) cut
-        fallbacks, and the IPOPT recoveries that follow them, from 45 to 2 (nominal, 20
-        starts) and the solve-time p99 from 37 to about 22 ms, with the same successes.
+        solve's iterate is applied.  In the swing-up benchmarks every warm SQP failure was
+        the iteration cap with violations of 1e-6 to 1.1e-3 (median 5e-5), each followed by
+        a ~42 ms IPOPT recovery.  Raising this to 1e-3 cut the fallbacks on 20 nominal
+        starts from 45 to 2 and the solve-time p99 from 37 to about 22 ms, with 20/20 in
+        each scenario on seeds 0 and 1, but on the larger robustness samples it lost
+        starts: 77/80 mismatched starts (79/80 at 1e-6; two new failures at |x| = 2.00 and
+        2.02 m) and 157/160 in ``benchmarks/swingup_ceiling.py`` (158/160); 1e-4 gave
+        78/80 and 158/160.  So the default stays strict.
     recover_after : int
         After this many failed solves in a row the next solve is a recovery solve (IPOPT)
         from the shifted plan.
@@ -199,7 +202,7 @@ class DiscreteInputMPC:
     def __init__(self, ode, levels, *, input_index, stage_residual, terminal_residual, dt,
                  horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
                  solver="sqp", relaxation="continuous", rounding="lookahead", depth=4,
-                 max_iter=10, tol=1e-4, accept_inexact=True, inexact_tol=1e-3,
+                 max_iter=10, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
                  lookahead_penalty=None,
                  recover_after=1, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5):
         if not isinstance(ode, ca.Function):
