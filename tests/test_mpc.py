@@ -4,6 +4,7 @@ The closed-loop checks run the controller built from the *identified* cart-pendu
 plant (CVODES, zero-order hold) and judge them by issue 3's success criterion.
 """
 
+import argparse
 import math
 
 import casadi as ca
@@ -270,6 +271,19 @@ def test_swingup_script_runs_small_and_writes_json_and_figures(tmp_path, load_sc
 def test_swingup_script_bad_input_exits_2(capsys, load_script):
     assert load_script("mpc/swingup.py").main(["--episodes", "0"]) == 2
     assert "episodes" in capsys.readouterr().err
+    assert load_script("mpc/swingup.py").main(["--episodes", "1", "--inexact-tol", "-1"]) == 2
+    assert "inexact-tol" in capsys.readouterr().err
+
+
+def test_swingup_controller_options_reach_the_controller(monkeypatch):
+    import lsindy_cas.swingup as sw
+
+    seen = {}
+    monkeypatch.setattr(sw, "run_swingup", lambda model, **kw: seen.update(kw) or
+                        {"scenarios": {}})
+    parser = sw.add_swingup_arguments(argparse.ArgumentParser())
+    sw.run_from_args(parser.parse_args(["--balance", "off", "--inexact-tol", "1e-3"]))
+    assert seen["controller_options"] == {"balance": False, "inexact_tol": 1e-3}
 
 
 def test_online_correction_estimates_the_input_gain_error(model):

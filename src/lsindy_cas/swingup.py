@@ -368,6 +368,11 @@ def add_swingup_arguments(parser):
                         help="sqp (default), sqp-gn, fatrop or ipopt (warm-started steps)")
     parser.add_argument("--rounding", default=None,
                         help="how the applied force is chosen: lookahead (default), sur or nearest")
+    parser.add_argument("--balance", choices=("on", "off"), default=None,
+                        help="pulse balancer near the upright (default on)")
+    parser.add_argument("--inexact-tol", type=float, default=None, metavar="TOL",
+                        help="largest constraint violation of an iteration-capped solve that is "
+                             "still applied (default 1e-6)")
     parser.add_argument("--json", metavar="OUT.json", help="write the metrics as JSON")
     parser.add_argument("--out", metavar="DIR", help="write the Fig. 5 analogue (PNG) here")
     return parser
@@ -381,6 +386,12 @@ def run_from_args(args):
 
         model = LagrangianSINDy.load(args.model)
     opts = {k: getattr(args, k) for k in ("solver", "rounding") if getattr(args, k, None)}
+    if getattr(args, "balance", None):
+        opts["balance"] = args.balance == "on"
+    if getattr(args, "inexact_tol", None) is not None:
+        if not 0 < args.inexact_tol < float("inf"):  # fail before the identification runs
+            raise ValueError(f"--inexact-tol must be positive and finite, got {args.inexact_tol}.")
+        opts["inexact_tol"] = args.inexact_tol
     scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]
     report = run_swingup(model, episodes=args.episodes, seed=args.seed, scenarios=scenarios,
                          out=args.out, json_path=args.json, controller_options=opts)
