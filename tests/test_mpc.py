@@ -172,6 +172,12 @@ def test_failed_solve_falls_back_to_the_shifted_previous_plan(model):
     # the plan used now is the previous one shifted by one interval
     np.testing.assert_allclose(ctrl.plan_["forces"][:-1], previous[1:])
     assert not ctrl.plan_["success"]
+    # the first solve of an episode is the cold one, the one after a failure a recovery
+    ctrl.nlp.solve = lambda *args, **kwargs: ("failed", *args[1:4], 0)
+    ctrl(x)
+    assert ctrl.stats.solve_kinds == ["cold", "warm", "recover"]
+    by_kind = ctrl.stats.summary()["by_kind"]
+    assert {k: v["n"] for k, v in by_kind.items()} == {"warm": 1, "cold": 1, "recover": 1}
 
 
 def test_capped_solves_within_inexact_tol_are_applied_not_failed(model, plant):

@@ -61,6 +61,9 @@ class MPCStats:
         (:class:`~lsindy_cas.mpc.SwingUpMPC`: the pulse balancer near the upright).
     iterations : list of int
         Solver iterations per solve.
+    solve_kinds : list of str
+        Which solver ran each solve: ``"warm"`` (the warm-started solver), ``"cold"`` (IPOPT,
+        first step of an episode) or ``"recover"`` (IPOPT after a failed step).
     statuses : dict
         Count of each solver return status.
     """
@@ -73,6 +76,7 @@ class MPCStats:
     solve_cpu_times: list = field(default_factory=list)
     step_times: list = field(default_factory=list)
     iterations: list = field(default_factory=list)
+    solve_kinds: list = field(default_factory=list)
     statuses: dict = field(default_factory=dict)
 
     def clear(self):
@@ -80,8 +84,14 @@ class MPCStats:
         self.__init__()
 
     def summary(self):
-        """Dictionary of counts and solve-time percentiles in milliseconds."""
+        """Dictionary of counts and solve-time percentiles in milliseconds (overall, and count,
+        median and maximum per solve kind under ``"by_kind"``) and the solver statuses."""
         t = np.asarray(self.solve_times) * 1e3
+        kinds = np.asarray(self.solve_kinds, dtype=object)  # appended with solve_times
+        by_kind = {k: {"n": int(np.sum(kinds == k)),
+                       "solve_ms_median": float(np.median(t[kinds == k])),
+                       "solve_ms_max": float(t[kinds == k].max())}
+                   for k in ("warm", "cold", "recover") if np.any(kinds == k)}
         c = np.asarray(self.solve_cpu_times) * 1e3
         s = np.asarray(self.step_times) * 1e3
         pct = (lambda a, q: float(np.percentile(a, q)) if a.size else float("nan"))
@@ -91,7 +101,8 @@ class MPCStats:
                 "solve_ms_max": float(t.max()) if t.size else float("nan"),
                 "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),
                 "step_ms_median": pct(s, 50), "step_ms_p99": pct(s, 99),
-                "iterations_median": pct(np.asarray(self.iterations), 50)}
+                "iterations_median": pct(np.asarray(self.iterations), 50), "by_kind": by_kind,
+                "statuses": dict(self.statuses)}
 
 
 def _check_levels(force_set):
@@ -406,6 +417,7 @@ class DiscreteInputMPC:
         self.stats.solve_cpu_times.append(time.thread_time() - c0)
         self.stats.statuses[status] = self.stats.statuses.get(status, 0) + 1
         self.stats.iterations.append(iters)
+        self.stats.solve_kinds.append(kind)
         self.stats.n_solves += 1
         self._failed = 0 if ok else self._failed + 1
         if not ok:
