@@ -292,17 +292,20 @@ def test_swingup_controller_options_reach_the_controller(monkeypatch):
     assert seen["controller_options"] == {"balance": False, "inexact_tol": 1e-3}
 
 
+def _model_step(ctrl, x, force):
+    """One control period of the controller's own model with ``force`` on the cart."""
+    u = np.zeros(2)
+    u[ctrl.cart_index] = force
+    return np.asarray(ctrl.step_function(x, u)).ravel()
+
+
 def test_online_correction_estimates_the_input_gain_error(model):
     """The lookahead's RLS correction recovers a plant whose input effect is 20 % stronger."""
     ctrl = SwingUpMPC(model)
-    F = ctrl.step_function
     x = np.array([0.0, 3.0, 0.0, 0.0])
     for _ in range(20):
-        force = float(ctrl(x))
-        u = np.zeros(2)
-        u[ctrl.cart_index] = force
-        x_u = np.asarray(F(x, u)).ravel()
-        x_0 = np.asarray(F(x, np.zeros(2))).ravel()
+        x_u = _model_step(ctrl, x, float(ctrl(x)))
+        x_0 = _model_step(ctrl, x, 0.0)
         x = x_u + 0.2 * (x_u - x_0)  # the "plant"
     vel = 2 + ctrl.pole_index
     assert abs(ctrl._theta[vel, 0] - 0.2) < 0.05
@@ -332,9 +335,7 @@ def hard():
 
 
 def _next_rate(ctrl, x, force):
-    u = np.zeros(2)
-    u[ctrl.cart_index] = force
-    return float(np.asarray(ctrl.step_function(x, u)).ravel()[2 + ctrl.pole_index])
+    return float(_model_step(ctrl, x, force)[2 + ctrl.pole_index])
 
 
 def test_balancer_waits_while_any_push_would_leave_the_band(hard):
@@ -351,9 +352,7 @@ def test_balancer_reverses_a_built_up_rate_inside_the_band(hard):
     x = np.array([0.0, np.pi + 0.03, 0.0, 0.2])
     for _ in range(10):
         force = FORCES[ctrl.balancer(x)]
-        u = np.zeros(2)
-        u[ctrl.cart_index] = force
-        x_next = np.asarray(ctrl.step_function(x, u)).ravel()
+        x_next = _model_step(ctrl, x, force)
         if force != 0.0:
             break
         x = x_next
@@ -403,9 +402,7 @@ def test_balancer_keeps_the_track_before_the_rate_band(hard, sign):
             level = b(x)
             if level is None:
                 break
-            u = np.zeros(2)
-            u[ctrl.cart_index] = FORCES[level]
-            x = np.asarray(ctrl.step_function(x, u)).ravel()
+            x = _model_step(ctrl, x, FORCES[level])
             track = max(track, abs(x[0]))
         assert (track < ctrl.track_limit) == inside, (track_weight, track)
 

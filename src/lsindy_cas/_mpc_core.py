@@ -260,7 +260,6 @@ class DiscreteInputMPC:
             self._rounder = ROUNDINGS[rounding](self.levels.size)
         self._rollout = self.step_function.mapaccum(self.horizon)
         self.adapt = bool(adapt)
-        self._uses_correction = self._lookahead is not None  # subclasses may set it too
         self.adapt_forgetting = float(adapt_forgetting)
         self.adapt_max_gain = float(adapt_max_gain)
         if not 0 < self.adapt_forgetting <= 1:
@@ -367,6 +366,11 @@ class DiscreteInputMPC:
     def _own_level(self, x):
         """Level index chosen by a subclass's own rule at state ``x``, or None (default)."""
         return None
+
+    @property
+    def _uses_correction(self):
+        """Whether something predicts with the online correction (here: the lookahead)."""
+        return self._lookahead is not None
 
     def _correction(self):
         """Current online correction ``(gain, bias)`` of one-step predictions (zeros if off)."""

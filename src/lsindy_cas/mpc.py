@@ -112,8 +112,8 @@ class SwingUpMPC(DiscreteInputMPC):
         ``cart_frequency``, ``cart_damping``, ``lean_weight``, ``push_weight``,
         ``mode_weight``, ``track_weight``, ``brake_fraction``).  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
-        without 0 in the set is an error).  With ±10 % mass/length mismatch it raised swing-up success on the
-        8 mismatched plants × 20 starts from 145/160 to 158/160
+        without 0 in the set is an error).  With ±10 % mass/length mismatch it raised
+        swing-up success on the 8 mismatched plants × 20 starts from 145/160 to 158/160
         (``benchmarks/swingup_ceiling.py``).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
@@ -212,7 +212,6 @@ class SwingUpMPC(DiscreteInputMPC):
                 self.step_function, ode, self.levels, cart_index=ic, pole_index=ip,
                 upright=self.upright, track_limit=self.track_limit, dt=self.dt,
                 track_margin=track_margin, **balance)
-            self._uses_correction = True
 
     def reset(self):
         """Forget the warm start, the rounding memory and the balancer's mode (see
@@ -220,6 +219,11 @@ class SwingUpMPC(DiscreteInputMPC):
         super().reset()
         if getattr(self, "balancer", None) is not None:
             self.balancer.reset()
+
+    @property
+    def _uses_correction(self):
+        """The lookahead's and the balancer's predictions both use the online correction."""
+        return super()._uses_correction or self.balancer is not None
 
     def _own_level(self, x):
         """The balancer's level near the upright (None elsewhere or without a balancer)."""
