@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from lsindy_cas.mpc import SwingUpMPC
-from lsindy_cas.swingup import (identify_cart_pendulum, random_starts, run_episode,
+from lsindy_cas.paper.swingup import (identify_cart_pendulum, random_starts, run_episode,
                                 scenario_plant, scenario_stats)
 
 CONFIGS = {

@@ -2,7 +2,7 @@
 
 The paper-style loop scores each support with its own ``np.linalg.lstsq`` call inside
 ``itertools.combinations`` — the direct reading of the paper's trial-and-error search.  It is
-swapped in for our batched scorer (``lsindy_cas.search.score_all``) so that everything else — data,
+swapped in for our batched scorer (``lsindy_cas.identify.search.score_all``) so that everything else — data,
 library, admissibility, Legendre, equations of motion — is identical in both columns.
 
     python benchmarks/bench_search.py            # full run (~1.5 min), writes benchmarks/results/search.json
@@ -63,7 +63,7 @@ def spherical_problem():
 def bench_full_search(reps_ours, reps_loop):
     """Full C(125, 3) search on the spherical pendulum, no priors, with admissibility."""
     from lsindy_cas import LagrangianSINDy
-    from lsindy_cas import search as search_mod
+    from lsindy_cas.identify import search as search_mod
     s, tr, lib = spherical_problem()
     truth = set(np.flatnonzero(lib.coefficients(s.hamiltonian)))
 
@@ -89,7 +89,7 @@ def bench_full_search(reps_ours, reps_loop):
 
 
 def bench_table_one(reps):
-    from lsindy_cas.reproduce import table_one
+    from lsindy_cas.paper.table1 import table_one
     t, all_t, cells = timed(table_one, reps)
     return {"seconds": t, "all_s": all_t, "cells": len(cells),
             "all_exact": all(c.exact_support and c.lagrangian_exact_support for c in cells),
@@ -98,7 +98,7 @@ def bench_table_one(reps):
 
 CLI_SNIPPET = """
 import sys
-from lsindy_cas import search
+from lsindy_cas.identify import search
 if sys.argv[1] == "loop":
     sys.path.insert(0, {here!r})
     from bench_search import loop_score_all

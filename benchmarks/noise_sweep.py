@@ -43,9 +43,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from lsindy_cas import LagrangianSINDy, systems  # noqa: E402
-from lsindy_cas.library import Library  # noqa: E402
-from lsindy_cas.reproduce import PAPER_SETUPS, compare  # noqa: E402
-from lsindy_cas.smoothing import add_noise, finite_difference  # noqa: E402
+from lsindy_cas.symbolic.library import Library  # noqa: E402
+from lsindy_cas.paper.table1 import PAPER_SETUPS, compare  # noqa: E402
+from lsindy_cas.data.smoothing import add_noise, finite_difference  # noqa: E402
 
 LEVELS = (0.0, 1e-8, 1e-6, 1e-4, 1e-3, 1e-2, 5e-2, 1e-1)
 SYSTEMS = ("spherical", "double", "cart")

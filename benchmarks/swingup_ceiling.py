@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from lsindy_cas.mpc import SwingUpMPC
-from lsindy_cas.swingup import (Plant, identify_cart_pendulum, mismatched_cart_pendulum,
+from lsindy_cas.paper.swingup import (Plant, identify_cart_pendulum, mismatched_cart_pendulum,
                                 random_starts, run_episode)
 
 DT = 0.05  # control period (s) of the controller and of the plant's zero-order hold

@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lsindy_cas.swingup import add_swingup_arguments, run_from_args, run_swingup
+from lsindy_cas.paper.swingup import add_swingup_arguments, run_from_args, run_swingup
 
 __all__ = ["main", "run_swingup"]
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas.reproduce import PAPER_SETUPS
+from lsindy_cas.paper.table1 import PAPER_SETUPS
 
 
 @pytest.fixture(scope="session")

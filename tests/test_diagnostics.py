@@ -6,8 +6,8 @@ import pytest
 
 from lsindy_cas import LagrangianSINDy, Library, Trajectory, systems
 from lsindy_cas.cli import main
-from lsindy_cas.reproduce import PAPER_SETUPS, run_cell
-from lsindy_cas.smoothing import add_noise
+from lsindy_cas.paper.table1 import PAPER_SETUPS, run_cell
+from lsindy_cas.data.smoothing import add_noise
 
 
 def _held(rng, n=12, hold=0.4, amp=2.0):

@@ -4,9 +4,9 @@ import pytest
 import sympy as sp
 
 from lsindy_cas import Library, systems
-from lsindy_cas.legendre import legendre
-from lsindy_cas.mechanics import EulerLagrange
-from lsindy_cas.reproduce import run_cell
+from lsindy_cas.mechanics.legendre import legendre
+from lsindy_cas.mechanics.euler_lagrange import EulerLagrange
+from lsindy_cas.paper.table1 import run_cell
 
 
 def test_cart_pendulum_equations_by_hand():

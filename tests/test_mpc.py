@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas._rounding import NearestRounding, SumUpRounding, weights_from_value
+from lsindy_cas.control.rounding import NearestRounding, SumUpRounding, weights_from_value
 from lsindy_cas.mpc import SwingUpMPC, find_upright
-from lsindy_cas.swingup import (Plant, evaluate, identify_cart_pendulum, random_starts,
+from lsindy_cas.paper.swingup import (Plant, evaluate, identify_cart_pendulum, random_starts,
                                 run_episode)
 
 FORCES = (-10.0, 0.0, 10.0)
@@ -282,7 +282,7 @@ def test_swingup_script_bad_input_exits_2(capsys, load_script):
 
 
 def test_swingup_controller_options_reach_the_controller(monkeypatch):
-    import lsindy_cas.swingup as sw
+    import lsindy_cas.paper.swingup as sw
 
     seen = {}
     monkeypatch.setattr(sw, "run_swingup", lambda model, **kw: seen.update(kw) or

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from lsindy_cas import LagrangianSINDy, Library, Trajectory, systems
-from lsindy_cas.balance import cumulative_work, integral_form
-from lsindy_cas.reproduce import PAPER_SETUPS, compare
-from lsindy_cas.smoothing import add_noise, finite_difference, force_switches, smooth, whittaker
+from lsindy_cas.identify.balance import cumulative_work, integral_form
+from lsindy_cas.paper.table1 import PAPER_SETUPS, compare
+from lsindy_cas.data.smoothing import add_noise, finite_difference, force_switches, smooth, whittaker
 
 
 def _strip(tr):

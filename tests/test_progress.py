@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from lsindy_cas.progress import ProgressBar, format_count, format_seconds
-from lsindy_cas.search import best_subset
+from lsindy_cas.identify.search import best_subset
 
 
 class Clock:

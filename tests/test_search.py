@@ -4,7 +4,7 @@ import itertools
 import numpy as np
 import pytest
 
-from lsindy_cas.search import best_subset, combinations, score_all
+from lsindy_cas.identify.search import best_subset, combinations, score_all
 
 
 @pytest.mark.parametrize("n, r", [(5, 0), (5, 1), (7, 3), (9, 4), (6, 6), (3, 4)])

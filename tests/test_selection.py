@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 
 from lsindy_cas import LagrangianSINDy, Library, Trajectory, systems
-from lsindy_cas import selection
-from lsindy_cas.balance import EnergyBalance, integral_form
-from lsindy_cas.reproduce import PAPER_SETUPS, compare, scheme_data
-from lsindy_cas.selection import CHI_OK, cv_error, select
-from lsindy_cas.smoothing import add_noise
+from lsindy_cas.identify import selection
+from lsindy_cas.identify.balance import EnergyBalance, integral_form
+from lsindy_cas.paper.table1 import PAPER_SETUPS, compare, scheme_data
+from lsindy_cas.identify.selection import CHI_OK, cv_error, select
+from lsindy_cas.data.smoothing import add_noise
 
 
 def _strip(runs):

@@ -4,7 +4,7 @@ import pytest
 import sympy as sp
 
 from lsindy_cas import Library, LagrangianSINDy, systems
-from lsindy_cas.reproduce import PAPER_SETUPS, SCHEMES, run_cell
+from lsindy_cas.paper.table1 import PAPER_SETUPS, SCHEMES, run_cell
 
 # Training data come from DOP853 at rtol 1e-11 with exact accelerations, so the energy balance holds
 # to ~1e-10 relative; coefficients must match to far better than the paper's 3 decimals.  1e-6 is

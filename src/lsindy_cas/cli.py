@@ -54,14 +54,14 @@ def _wrap(text: str) -> str:
 
 
 def _split(text: str | None) -> list:
-    from .library import _split_top_level
+    from .symbolic.library import _split_top_level
     return _split_top_level(text) if text else []
 
 
 def _identify(args) -> int:
-    from .data import load_trajectories
-    from .library import Library
-    from .model import LagrangianSINDy
+    from .data.trajectory import load_trajectories
+    from .symbolic.library import Library
+    from .identify.estimator import LagrangianSINDy
 
     coords = _split(args.coords)
     lib = Library.polynomial(coords, _split(args.features), args.degree)
@@ -87,7 +87,7 @@ def _identify(args) -> int:
 def _reproduce(args) -> int:
     from pathlib import Path
 
-    from .reproduce import markdown, table_one, write_table
+    from .paper.table1 import markdown, table_one, write_table
     say = lambda msg: print(msg, file=sys.stderr)  # noqa: E731
     cells = table_one(progress=say)
     print(markdown(cells))
@@ -96,7 +96,7 @@ def _reproduce(args) -> int:
     ok = all(c.exact_support and c.lagrangian_exact_support for c in cells)
     if args.no_figures:
         return 0 if ok else 1
-    from .plots import claims, make_figures
+    from .paper.figures import claims, make_figures
     try:
         paths = make_figures(Path(args.out), cells=cells, progress=say,
                              echo=lambda text: print("\n" + text))
@@ -157,9 +157,9 @@ def _forces(text: str, coords: list, actuated: list) -> list:
 def _simulate(args) -> int:
     import numpy as np
 
-    from .data import Trajectory
-    from .mechanics import simulate_ode
-    from .model import LagrangianSINDy
+    from .data.trajectory import Trajectory
+    from .mechanics.euler_lagrange import simulate_ode
+    from .identify.estimator import LagrangianSINDy
 
     from pathlib import Path
     if Path(args.out).suffix.lower() not in (".csv", ".npz"):
@@ -245,7 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.set_defaults(func=_simulate)
 
     try:
-        from .swingup import add_swingup_arguments, run_from_args
+        from .paper.swingup import add_swingup_arguments, run_from_args
     except ImportError:  # the MPC part is optional while it is being built
         pass
     else:

@@ -44,7 +44,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from ._mpc_core import wrap_angle
+from .mpc import wrap_angle
 
 __all__ = ["PulseBalancer"]
 

@@ -20,8 +20,8 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .data import Trajectory
-from .library import Library
+from ..data.trajectory import Trajectory
+from ..symbolic.library import Library
 
 __all__ = ["require_pysindy", "SINDyLasso", "Kronic", "Rollout", "rollout"]
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from . import systems
-from .library import Library
-from .model import LagrangianSINDy
+from ..symbolic.library import Library
+from ..identify.estimator import LagrangianSINDy
 
 __all__ = ["PAPER_SETUPS", "Cell", "run_cell", "table_one", "write_table"]
 
@@ -119,7 +119,7 @@ def table_one(progress=None) -> list:
 
 
 def _short(expr) -> str:
-    from .printing import plain      # 4 significant digits, trig products folded
+    from ..printing import plain      # 4 significant digits, trig products folded
     return plain(expr, 4).replace("**", "^").replace("*", "·")
 
 

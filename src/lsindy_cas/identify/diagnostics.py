@@ -240,7 +240,7 @@ def _independent(fields) -> bool:
 
 
 def diagnose(model, bal: EnergyBalance, trajectories, scale_system=None, admissible=None) -> Diagnostics:
-    """Build the report for a fitted :class:`~lsindy_cas.model.LagrangianSINDy`."""
+    """Build the report for a fitted :class:`~lsindy_cas.identify.estimator.LagrangianSINDy`."""
     lib, sel = model.library, model.selection_
     d = Diagnostics()
     S = model.support_

@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from .coords import Coordinates
+from ..symbolic.coords import Coordinates
 
 __all__ = ["EulerLagrange", "simulate_ode"]
 

@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data import Trajectory
-from .library import Library
-from .smoothing import force_switches
+from ..data.trajectory import Trajectory
+from ..symbolic.library import Library
+from ..data.smoothing import force_switches
 
 __all__ = ["EnergyBalance", "derivative_form", "integral_form", "cumulative_work", "HOLDS"]
 

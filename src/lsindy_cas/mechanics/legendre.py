@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .library import Library
+from ..symbolic.library import Library
 
 __all__ = ["legendre"]
 

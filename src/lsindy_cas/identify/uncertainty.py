@@ -161,7 +161,7 @@ def scaled_null(M: np.ndarray, d: np.ndarray, S, scale_system=None) -> np.ndarra
     """Coefficients (k,) from the near null space of a column-normalised Gram matrix M (k, k).
 
     The near null space holds the eigenvectors whose eigenvalue is within 10⁶ of the smallest
-    (10³ in singular values, as :func:`lsindy_cas.search.best_subset` does) or below 10⁻¹⁴ of the
+    (10³ in singular values, as :func:`lsindy_cas.identify.search.best_subset` does) or below 10⁻¹⁴ of the
     largest; with a scale record (A_s, b_s) the combination and scale come from A_s ξ ≈ b_s
     (eq. 8), otherwise the least eigenvector is scaled to a largest entry of 1.
     """

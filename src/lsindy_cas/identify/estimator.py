@@ -7,18 +7,18 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from . import __version__
-from ._io import atomic_write
+from .._version import __version__
+from .._io import atomic_write
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
-from .data import Trajectory
+from ..data.trajectory import Trajectory
 from .diagnostics import constant_force_trap, diagnose
-from .legendre import legendre
-from .library import Library
-from .mechanics import EulerLagrange, simulate_ode
+from ..mechanics.legendre import legendre
+from ..symbolic.library import Library
+from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
 from .search import _normalise
 from .selection import Significant, select
-from .smoothing import smooth
+from ..data.smoothing import smooth
 from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
     row_gradients, sample_weights
 
@@ -52,7 +52,7 @@ class LagrangianSINDy:
         Candidate terms Θ.
     n_terms : int, optional
         Number of terms k in the energy (paper's k).  None (default): chosen from the data on
-        held-out trajectories or stretches (:mod:`lsindy_cas.selection`).
+        held-out trajectories or stretches (:mod:`lsindy_cas.identify.selection`).
     prior : sequence of str
         Terms known to be in the energy (e.g. those of the constituent simple systems); forced into
         every support and required to come out significantly non-zero.
@@ -64,7 +64,7 @@ class LagrangianSINDy:
         that many samples.
     smoothing : {"auto", "none"}
         Integral form: "auto" smooths the measured states with a strength chosen from the data
-        (:func:`lsindy_cas.smoothing.smooth`); "none" uses them as measured.  Either way the noise
+        (:func:`lsindy_cas.data.smoothing.smooth`); "none" uses them as measured.  Either way the noise
         level is estimated and the coefficients are corrected for noise in the regressors.
     max_terms : int, optional
         Automatic k: the largest k tried.

@@ -1,9 +1,9 @@
 """Scale-free model selection: the support *and* the number of terms k, with physical admissibility.
 
-For each k the best admissible support comes from :func:`lsindy_cas.search.best_subset` (all
+For each k the best admissible support comes from :func:`lsindy_cas.identify.search.best_subset` (all
 k-supports scored by a scale-free criterion).  Admissible (:class:`Significant`) means: physically
 an energy (prior terms present, kinetic part positive definite, no term linear in the velocities),
-no term that the data leave undetermined (see :mod:`lsindy_cas.diagnostics`, constant input), and
+no term that the data leave undetermined (see :mod:`lsindy_cas.identify.diagnostics`, constant input), and
 every coefficient significantly non-zero in a block jackknife — a dimensionless t-test that keeps
 noise-fitting terms out without any threshold in the units of the data.  k itself is chosen on held-out data: whole
 trajectories when there are four or more, otherwise contiguous stretches of each run (five folds).
@@ -17,7 +17,7 @@ held-out error by at least a factor ``IMPROVEMENT`` *and* does so in a paired te
 spurious extra term can fit consistently in every fold — a real missing term cuts the error by
 orders of magnitude instead.  The scan stops two k past the last improvement.
 
-When the noise of the data is known (:class:`~lsindy_cas.uncertainty.NoiseModel`, from the
+When the noise of the data is known (:class:`~lsindy_cas.identify.uncertainty.NoiseModel`, from the
 smoother), two more rules apply, both in units of the noise (χ = RSS / E[noise], ≈ 1 for a model
 that fits to within the noise):
 
@@ -68,9 +68,9 @@ class Significant:
     """Admissibility plus significance: ``(support, coef) -> (ok, reason)``.
 
     A candidate passes when it avoids the ``excluded`` terms and terms linear in the velocities
-    (which cannot appear in an energy, see :mod:`lsindy_cas.legendre`), the physical test passes
+    (which cannot appear in an energy, see :mod:`lsindy_cas.mechanics.legendre`), the physical test passes
     (prior terms present, kinetic part positive definite), and every coefficient has |t| ≥ T_CRIT
-    in a delete-a-block jackknife (:class:`lsindy_cas.uncertainty.Jackknife`).
+    in a delete-a-block jackknife (:class:`lsindy_cas.identify.uncertainty.Jackknife`).
     """
 
     def __init__(self, physical, bal: EnergyBalance, scale_system=None, excluded=()):

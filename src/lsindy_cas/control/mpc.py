@@ -5,9 +5,9 @@
 solves a relaxation (partial outer convexification: one weight per admissible level, the weights
 summing to 1; or a continuous input) warm-started from the shifted previous solution, then turns
 the first interval's relaxed decision into one admissible level: by enumerating short discrete
-sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas._lookahead`, the default), by
+sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas.control.lookahead`, the default), by
 sum-up rounding with the rounding error carried across steps, or by plain rounding
-(:mod:`lsindy_cas._rounding`).  A failed or non-converged solve falls back to the shifted
+(:mod:`lsindy_cas.control.rounding`).  A failed or non-converged solve falls back to the shifted
 previous plan, is counted in :attr:`DiscreteInputMPC.stats`, and the next step re-solves with the
 robust solver.
 """
@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ._ocp import SOLVERS, MultipleShootingNLP, rk4_step
-from ._lookahead import build_lookahead
-from ._rounding import ROUNDINGS, weights_from_value
+from .ocp import SOLVERS, MultipleShootingNLP, rk4_step
+from .lookahead import build_lookahead
+from .rounding import ROUNDINGS, weights_from_value
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "wrap_angle"]
 
@@ -166,7 +166,7 @@ class DiscreteInputMPC:
         one weight per level, summing to 1.  For an ODE affine in the input both relax to
         the same convex hull; the continuous one has fewer variables and was as successful
         and faster in ``benchmarks/bench_mpc.py``.  The weights of a continuous input are
-        those of its two adjacent levels (:func:`~lsindy_cas._rounding.weights_from_value`).
+        those of its two adjacent levels (:func:`~lsindy_cas.control.rounding.weights_from_value`).
     rounding : {"lookahead", "sur", "nearest"}
         How the applied level is chosen: lookahead over all discrete sequences of ``depth``
         intervals (first move among the levels adjacent to the relaxed first input), sum-up

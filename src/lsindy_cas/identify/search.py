@@ -297,7 +297,7 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
               progress: Callable | None = None):
     """Enumerate and score every k-support containing ``forced``.
 
-    Driven data use the prefix-sharing Cholesky tree (:mod:`lsindy_cas.subset_tree`); passive data
+    Driven data use the prefix-sharing Cholesky tree (:mod:`lsindy_cas.identify.subset_tree`); passive data
     the batched smallest eigenvalue (:func:`score_supports`).
 
     Returns

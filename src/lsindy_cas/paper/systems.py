@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from .coords import Coordinates
-from .data import Trajectory
-from .mechanics import EulerLagrange, simulate_ode
+from ..symbolic.coords import Coordinates
+from ..data.trajectory import Trajectory
+from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
 
 __all__ = ["MechanicalSystem", "spherical_pendulum", "double_pendulum", "cart_pendulum",
            "mass_spring", "PAPER_SYSTEMS"]
@@ -76,7 +76,7 @@ class MechanicalSystem:
 
     def energy(self, X) -> np.ndarray:
         """H evaluated at states X (n_samples, 2n)."""
-        from .library import Library
+        from ..symbolic.library import Library
         return Library(self._c, [self.hamiltonian]).theta(X)[:, 0]
 
     def _forces(self, u):

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .library import Library
+from ..symbolic.library import Library
 
 __all__ = ["Admissibility"]
 
@@ -25,7 +25,7 @@ PD_RTOL = 1e-9
 
 
 class Admissibility:
-    """Callable ``(support, coef) -> (ok, reason)`` for :func:`lsindy_cas.search.best_subset`.
+    """Callable ``(support, coef) -> (ok, reason)`` for :func:`lsindy_cas.identify.search.best_subset`.
 
     Parameters
     ----------

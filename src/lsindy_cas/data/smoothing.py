@@ -10,7 +10,7 @@ regressors (errors in variables).  Two tools deal with it here:
   up to 10⁴ × the noise level (it cannot tell smooth signal from noise when there is none), the
   likelihood leaves clean data essentially untouched and smooths noisy data as much as they need.
   The same fit gives the noise level of each column and the variance of what remains after
-  smoothing, which the errors-in-variables correction (:mod:`lsindy_cas.uncertainty`) and the
+  smoothing, which the errors-in-variables correction (:mod:`lsindy_cas.identify.uncertainty`) and the
   sample weights use.
 - Piecewise-constant inputs make the accelerations jump where the force jumps: the penalty rows
   whose stencil straddles a force switch are dropped, so the kinks in q̇ there are kept (a
@@ -31,7 +31,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .data import Trajectory
+from .trajectory import Trajectory
 
 __all__ = ["Smoothed", "smooth", "whittaker", "force_switches", "finite_difference", "add_noise",
            "UNDERSMOOTH"]

@@ -38,7 +38,7 @@ def swingup_figure(training, runs, ctrl, out):
     training : list of Trajectory
         Identification data (may be empty).
     runs : dict of str -> list of Episode
-        Closed-loop episodes per scenario (:func:`lsindy_cas.swingup.run_episode`).
+        Closed-loop episodes per scenario (:func:`lsindy_cas.paper.swingup.run_episode`).
     ctrl : SwingUpMPC
         The controller (for the upright angle, the force set and the track limit).
     out : Path

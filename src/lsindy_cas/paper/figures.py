@@ -21,9 +21,9 @@ import numpy as np
 
 from . import systems as _systems
 from .baselines import Kronic, Rollout, SINDyLasso, require_pysindy, rollout
-from .library import Library, _split_top_level
-from .printing import symbol_latex
-from .reproduce import PAPER_SETUPS, run_cell, scheme_data
+from ..symbolic.library import Library, _split_top_level
+from ..printing import symbol_latex
+from .table1 import PAPER_SETUPS, run_cell, scheme_data
 
 __all__ = ["Complexity", "Extrapolation", "claims", "complexity", "extrapolation", "fig3", "fig4",
            "make_figures", "markdown"]

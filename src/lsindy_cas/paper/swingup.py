@@ -24,7 +24,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from ._mpc_core import wrap_angle
+from ..control.mpc import wrap_angle
 
 __all__ = ["Episode", "Plant", "add_swingup_arguments", "evaluate", "identify_cart_pendulum",
            "mismatched_cart_pendulum", "random_starts", "run_episode", "run_from_args", "run_swingup", "scenario_plant",
@@ -209,8 +209,8 @@ def identify_cart_pendulum(system=None):
         The training data.
     """
     from . import systems
-    from .library import Library
-    from .model import LagrangianSINDy
+    from ..symbolic.library import Library
+    from ..identify.estimator import LagrangianSINDy
 
     system = systems.cart_pendulum() if system is None else system
     trajs = [system.simulate([0.0, np.pi / 4, 0.0, 0.0], 1.0, u=1.0, dt=0.01)]
@@ -224,7 +224,6 @@ def identify_cart_pendulum(system=None):
 def mismatched_cart_pendulum(factors):
     """The true cart-pendulum with its cart mass, pole mass and pole length times ``factors``."""
     from . import systems
-
     p = systems.cart_pendulum().params
     return systems.cart_pendulum(mc=p["mc"] * factors[0], mp=p["mp"] * factors[1],
                                  L=p["L"] * factors[2])
@@ -237,7 +236,6 @@ def scenario_plant(name, rng, dt):
     ``rng`` (three draws per episode); the other scenarios use the true cart-pendulum.
     """
     from . import systems
-
     if name == "mismatch":
         f = 1.0 + 0.1 * rng.choice([-1.0, 1.0], size=3)
         return Plant(mismatched_cart_pendulum(f), dt), f.tolist()
@@ -285,7 +283,7 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
     dict
         Metrics per scenario, the controller's solve statistics and the model.
     """
-    from .mpc import SwingUpMPC
+    from ..control.cart_pendulum import SwingUpMPC
 
     episodes = int(episodes)
     if episodes < 1:
@@ -336,7 +334,7 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
         Path(json_path).parent.mkdir(parents=True, exist_ok=True)
         Path(json_path).write_text(json.dumps(report, indent=2))
     if out is not None:
-        from .plots_mpc import swingup_figure
+        from .swingup_figures import swingup_figure
 
         report["figures"] = [str(p) for p in swingup_figure(trajs, runs, ctrl, Path(out))]
     return report
@@ -382,7 +380,7 @@ def run_from_args(args):
     """Run :func:`run_swingup` from parsed arguments; returns the exit code (0 = all passed)."""
     model = None
     if args.model:
-        from .model import LagrangianSINDy
+        from ..identify.estimator import LagrangianSINDy
 
         model = LagrangianSINDy.load(args.model)
     opts = {k: getattr(args, k) for k in ("solver", "rounding") if getattr(args, k, None)}
