@@ -1,0 +1,57 @@
+"""Argument checks shared by every layer: one sentence naming the argument and what was expected.
+
+Each raises ``TypeError`` for a value of the wrong kind and ``ValueError`` for one of the right kind
+out of range, and returns the value converted (``int`` or ``float``), so callers write
+``self.dt = check_real("dt", dt, positive=True)``.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+
+__all__ = ["check_choice", "check_int", "check_real"]
+
+
+def check_int(name: str, value, *, low: int | None = None, high: int | None = None,
+              allow_none: bool = False):
+    """An integer (not a bool) in ``[low, high]``; ``None`` passes through when ``allow_none``."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name} must be an integer{' or None' if allow_none else ''}, "
+                        f"got {value!r}")
+    value = int(value)
+    if (low is not None and value < low) or (high is not None and value > high):
+        if high is None:
+            rng = f">= {low}"
+        elif low is None:
+            rng = f"<= {high}"
+        else:
+            rng = f"between {low} and {high}"
+        raise ValueError(f"{name} must be {rng}, got {value}")
+    return value
+
+
+def check_real(name: str, value, *, positive: bool = False, nonnegative: bool = False,
+               allow_none: bool = False):
+    """A finite real number (not a bool); optionally > 0 or >= 0."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a number{' or None' if allow_none else ''}, "
+                        f"got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if positive and not value > 0:
+        raise ValueError(f"{name} must be positive, got {value!r}")
+    if nonnegative and value < 0:
+        raise ValueError(f"{name} must be non-negative, got {value!r}")
+    return value
+
+
+def check_choice(name: str, value, options):
+    """One of ``options`` (compared with ``==``)."""
+    if value not in tuple(options):
+        raise ValueError(f"{name} must be one of {tuple(options)}, got {value!r}")
+    return value
