@@ -24,7 +24,11 @@ claims (ours sparsest; our extrapolation error below SINDy's)."""
 
 SIMULATE_EXAMPLE = """examples:
   lsindy simulate model.json --x0 "0,pi/4,0,0" --t-end 5 --out sim.csv
-  lsindy simulate model.json --x0 "0,pi/4,0,0" --t-end 1 --u "x=1.0" --dt 0.005 --out pushed.csv"""
+  lsindy simulate model.json --x0 "0,pi/4,0,0" --t-end 1 --u "x=1.0" --dt 0.005 --out pushed.csv
+  lsindy simulate model.json --x0 "0,pi/4,0,0" --u-file recorded.csv --out replay.csv"""
+
+LIBRARY_EXAMPLE = """example:
+  lsindy library --coords x,theta --features "cos(theta),sin(theta),theta_dot,x,x_dot" --degree 3"""
 
 SWINGUP_EXAMPLE = """examples:
   lsindy swingup --episodes 5 --out results       # identify the cart-pendulum, then swing it up
@@ -58,20 +62,40 @@ def _split(text: str | None) -> list:
     return _split_top_level(text) if text else []
 
 
-def _identify(args) -> int:
-    from .data.trajectory import load_trajectories
+def _library(args):
     from .symbolic.library import Library
+    return Library.polynomial(_split(args.coords), _split(args.features), args.degree)
+
+
+def _identify(args) -> int:
+    import numpy as np
+
+    from ._io import check_writable
+    from .data.trajectory import load_trajectories
     from .identify.estimator import LagrangianSINDy
 
-    coords = _split(args.coords)
-    lib = Library.polynomial(coords, _split(args.features), args.degree)
+    # Every option is checked before the data are read or the search starts.
+    for flag, value in (("--terms", args.terms), ("--max-terms", args.max_terms),
+                        ("--window", args.window)):
+        if value is not None and value < 1:
+            raise ValueError(f"{flag} must be a positive integer, got {value}")
+    if args.json:
+        check_writable(args.json, "--json")
+    lib = _library(args)
+    coords = lib.coords.names
+    for flag, value in (("--terms", args.terms), ("--max-terms", args.max_terms)):
+        if value is not None and value > len(lib):
+            raise ValueError(f"{flag} {value} is larger than the library size ({len(lib)} terms)")
     trajs = load_trajectories(args.trajectories, coords)
     scale = load_trajectories(args.scale, coords) if args.scale else None
-    if args.passive and scale is None:
-        raise ValueError("--passive needs --scale TRAJ... (a short actuated record, paper eq. 8)")
-    if args.terms is not None and args.terms < 1:
-        raise ValueError(f"--terms must be a positive integer, got {args.terms}")
-    model = LagrangianSINDy(lib, n_terms=args.terms, prior=_split(args.prior), form=args.form)
+    passive = args.passive or all(not np.any(tr.power) for tr in trajs)
+    if passive and scale is None:
+        raise ValueError("the training data are passive (no power fed in), which fixes the energy "
+                         "only up to a factor: add --scale TRAJ..., a short actuated record "
+                         "(paper eq. 8)")
+    model = LagrangianSINDy(lib, n_terms=args.terms, prior=_split(args.prior), form=args.form,
+                            window=args.window, smoothing=args.smoothing,
+                            max_terms=args.max_terms)
     from .progress import ProgressBar
     with ProgressBar("searching supports") as bar:
         model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
@@ -81,6 +105,15 @@ def _identify(args) -> int:
     if args.json:
         model.save(args.json)
         print(f"model written to {args.json}")
+    return 0
+
+
+def _list_library(args) -> int:
+    lib = _library(args)
+    width = len(str(len(lib) - 1))
+    for j, name in enumerate(lib.names):
+        print(f"{j:>{width}}  {name}")
+    print(f"{len(lib)} terms ({len(lib.coords.names)} coordinates, degree {args.degree})")
     return 0
 
 
@@ -154,16 +187,54 @@ def _forces(text: str, coords: list, actuated: list) -> list:
                      f"got {len(values)}")
 
 
-def _simulate(args) -> int:
+def _input_file(path: str, coords: list):
+    """Times and held forces (n_samples, n) of a recorded input (``t`` and ``Q_<q>`` columns)."""
     import numpy as np
 
-    from .data.trajectory import Trajectory
-    from .mechanics.euler_lagrange import simulate_ode
-    from .identify.estimator import LagrangianSINDy
-
+    from .data.trajectory import _read_columns
     from pathlib import Path
+
+    if not Path(path).is_file():
+        raise ValueError(f"--u-file {path}: no such file")
+    cols = _read_columns(Path(path))
+    if "t" not in cols:
+        raise ValueError(f"--u-file {path}: missing column 't'")
+    names = [f"Q_{c}" for c in coords]
+    unknown = [k for k in cols if k.startswith("Q_") and k not in names]
+    if unknown:
+        raise ValueError(f"--u-file {path}: {', '.join(unknown)} name no coordinate of the model "
+                         f"({', '.join(coords)})")
+    if not any(n in cols for n in names):
+        raise ValueError(f"--u-file {path}: no force column ({', '.join(names)})")
+    t = np.asarray(cols["t"], float)
+    if t.size < 2 or not np.all(np.diff(t) > 0):
+        raise ValueError(f"--u-file {path}: 't' must be strictly increasing, with 2 or more samples")
+    Q = np.column_stack([cols.get(n, np.zeros_like(t)) for n in names]).astype(float)
+    if not np.all(np.isfinite(Q)):
+        raise ValueError(f"--u-file {path}: forces contain NaN or inf")
+    return t, Q
+
+
+def _simulate(args) -> int:
+    import numpy as np
+    from pathlib import Path
+
+    from ._io import check_writable
+    from .data.trajectory import Trajectory
+    from .identify.estimator import LagrangianSINDy
+    from .mechanics.euler_lagrange import simulate_ode
+
     if Path(args.out).suffix.lower() not in (".csv", ".npz"):
         raise ValueError(f"--out {args.out}: use a .csv or .npz file name")
+    check_writable(args.out, "--out")
+    if args.u and args.u_file:
+        raise ValueError("give either --u (constant forces) or --u-file (a recorded input), not both")
+    if args.u_file and (args.t_end is not None or args.dt is not None):
+        raise ValueError("--u-file sets the sample times; leave out --t-end and --dt")
+    if not args.u_file and args.t_end is None:
+        raise ValueError("--t-end is required (or --u-file, whose times are used)")
+    if args.max_samples < 1:
+        raise ValueError(f"--max-samples must be a positive integer, got {args.max_samples}")
     model = LagrangianSINDy.load(args.model)
     coords = list(model.coords_)
     n = len(coords)
@@ -171,14 +242,31 @@ def _simulate(args) -> int:
     if len(x0) != 2 * n:
         raise ValueError(f"--x0 needs {2 * n} numbers [{', '.join(coords + [c + '_dot' for c in coords])}], "
                          f"got {len(x0)}")
-    if not args.t_end > 0 or not args.dt > 0:
-        raise ValueError(f"--t-end and --dt must be positive, got {args.t_end} and {args.dt}")
-    if args.dt > args.t_end:
-        raise ValueError(f"--dt ({args.dt}) is longer than --t-end ({args.t_end})")
-    Q = _forces(args.u, coords, list(getattr(model, "actuated_", []))) if args.u else [0.0] * n
-    t = np.arange(int(round(args.t_end / args.dt)) + 1) * args.dt
+    if args.u_file:
+        t, U_rec = _input_file(args.u_file, coords)
+        t = t - t[0]
+
+        def Q(ti, _x):                   # the sample at t_i acts over [t_i, t_{i+1}) (held input)
+            return U_rec[min(np.searchsorted(t, ti, side="right") - 1, len(t) - 1)]
+    else:
+        dt = 0.01 if args.dt is None else args.dt
+        if not args.t_end > 0 or not dt > 0 or not np.isfinite(args.t_end) or not np.isfinite(dt):
+            raise ValueError(f"--t-end and --dt must be positive, got {args.t_end} and {dt}")
+        if dt > args.t_end:
+            raise ValueError(f"--dt ({dt}) is longer than --t-end ({args.t_end})")
+        n_samples = args.t_end / dt + 1
+        if n_samples > args.max_samples:
+            raise ValueError(f"--t-end {args.t_end:g} at --dt {dt:g} is {n_samples:.3g} samples, "
+                             f"above the limit of {args.max_samples:,}; raise it with --max-samples "
+                             f"if you mean it")
+        Q = _forces(args.u, coords, list(getattr(model, "actuated_", []))) if args.u else [0.0] * n
+        Q = np.asarray(Q)
+        t = np.arange(int(round(args.t_end / dt)) + 1) * dt
+    if len(t) > args.max_samples:
+        raise ValueError(f"--u-file has {len(t):,} samples, above the limit of "
+                         f"{args.max_samples:,}; raise it with --max-samples if you mean it")
     try:
-        X, Xdot, U = simulate_ode(model.ode(), x0, t, np.asarray(Q), n)
+        X, Xdot, U = simulate_ode(model.ode(), x0, t, Q, n)
     except RuntimeError as exc:
         print(f"lsindy simulate: {exc}", file=sys.stderr)
         return 1
@@ -189,20 +277,29 @@ def _simulate(args) -> int:
     return 0
 
 
+def _library_arguments(parser):
+    parser.add_argument("--coords", required=True, help="coordinate names, comma-separated (x,theta)")
+    parser.add_argument("--features", required=True,
+                        help='feature expressions, comma-separated ("cos(theta),theta_dot,x_dot")')
+    parser.add_argument("--degree", type=int, default=2, help="highest product degree (default 2)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="lsindy", description=_wrap("Lagrangian-SINDy: identify energy, Lagrangian and "
                 "equations of motion from trajectory data; control with them."),
                 epilog=MAIN_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    from ._version import __version__
+    p.add_argument("--version", action="version", version=f"lsindy_cas {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
     ident = sub.add_parser("identify", help="identify H, L and the equations of motion from files",
+                           description=_wrap("Identify the total energy H, the Lagrangian L and the "
+                           "equations of motion of a mechanical system from trajectory files, print "
+                           "them with a diagnostics report and optionally save the model (JSON)."),
                            epilog=IDENTIFY_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     ident.add_argument("trajectories", nargs="+", metavar="TRAJ", help="trajectory files (CSV/NPZ)")
-    ident.add_argument("--coords", required=True, help="coordinate names, comma-separated (x,theta)")
-    ident.add_argument("--features", required=True,
-                       help='feature expressions, comma-separated ("cos(theta),theta_dot,x_dot")')
-    ident.add_argument("--degree", type=int, default=2, help="highest product degree (default 2)")
+    _library_arguments(ident)
     ident.add_argument("--terms", type=int, default=None,
                        help="number of terms k in the energy (default: chosen from the data on "
                        "held-out runs or stretches)")
@@ -212,8 +309,24 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--scale", nargs="+", metavar="TRAJ", help="short actuated record(s) for the scale")
     ident.add_argument("--form", choices=["auto", "derivative", "integral"], default="auto",
                        help="energy-balance form (auto: derivative if files carry <q>_ddot)")
-    ident.add_argument("--json", metavar="OUT.json", help="write the model file here")
+    ident.add_argument("--smoothing", choices=["auto", "none"], default="auto",
+                       help="integral form: smooth the measured states with a strength chosen from "
+                       "the data (auto, default) or use them as measured (none)")
+    ident.add_argument("--max-terms", type=int, default=None, metavar="K",
+                       help="automatic k: the largest k tried")
+    ident.add_argument("--window", type=int, default=None, metavar="N",
+                       help="integral form: windows of N samples (default: every window of every run)")
+    ident.add_argument("--json", metavar="OUT.json",
+                       help="write the model file here (its folder must exist)")
     ident.set_defaults(func=_identify)
+
+    libp = sub.add_parser("library", help="list the candidate terms of a library and their count",
+                          description=_wrap("Build the polynomial library that lsindy identify would "
+                          "build from the same --coords, --features and --degree, and list its terms "
+                          "(index and sympy name) and their count."),
+                          epilog=LIBRARY_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _library_arguments(libp)
+    libp.set_defaults(func=_list_library)
 
     rep = sub.add_parser("reproduce", help="the paper's Table I and Figs. 3-4, printed and saved",
                          description=_wrap("Identify the three benchmark systems as in the paper "
@@ -236,12 +349,19 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--x0", required=True,
                      help="initial state [q, q_dot], comma-separated; sympy syntax allowed "
                      '("0,pi/4,0,0"); start with --x0= if the first entry is negative')
-    sim.add_argument("--t-end", type=float, required=True, help="duration in seconds")
-    sim.add_argument("--dt", type=float, default=0.01, help="sampling period in seconds (default 0.01)")
+    sim.add_argument("--t-end", type=float, default=None, help="duration in seconds")
+    sim.add_argument("--dt", type=float, default=None, help="sampling period in seconds (default 0.01)")
     sim.add_argument("--u", default=None,
                      help="constant generalized force(s): one number (on the model's actuated "
                      'coordinate), one per coordinate, or name=value pairs ("x=1.0"); default 0')
-    sim.add_argument("--out", required=True, metavar="OUT.csv", help="output trajectory (.csv or .npz)")
+    sim.add_argument("--u-file", default=None, metavar="FILE",
+                     help="replay a recorded input: a trajectory-format file (CSV/NPZ) with 't' and "
+                     "'Q_<q>' columns; each sample is held until the next (zero-order hold), and "
+                     "its times are the output's")
+    sim.add_argument("--max-samples", type=int, default=1_000_000, metavar="N",
+                     help="refuse to simulate more than N samples (default 1,000,000)")
+    sim.add_argument("--out", required=True, metavar="OUT.csv",
+                     help="output trajectory (.csv or .npz; its folder must exist)")
     sim.set_defaults(func=_simulate)
 
     try:

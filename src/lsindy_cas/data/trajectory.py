@@ -7,6 +7,7 @@ increasing), one column per coordinate ``<q>``, one ``<q>_dot`` per coordinate, 
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -176,6 +177,13 @@ class Trajectory:
             if not coords:
                 raise ValueError(f"{src}: no coordinate columns (need '<q>' and '<q>_dot' pairs)")
         coords = [coords] if isinstance(coords, str) else list(coords)
+        others = [k for k in cols if k != "t" and k not in coords and k + "_dot" in cols]
+        if others:
+            raise ValueError(f"{src}: the file also has coordinate(s) {', '.join(others)} (with "
+                             f"{', '.join(o + '_dot' for o in others)}), not among the coordinates "
+                             f"named ({', '.join(coords)}); an unmodelled coordinate's motion "
+                             f"carries energy, so name every coordinate (e.g. --coords "
+                             f"{','.join(coords + others)}) or drop those columns from the file")
         for c in coords:
             for need in (c, c + "_dot"):
                 if need not in cols:
@@ -209,9 +217,13 @@ def _read_columns(path: Path) -> dict:
             names = [h.strip() for h in header.split(",")]
             if not header or any(not h for h in names):
                 raise ValueError("bad header row")
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            with warnings.catch_warnings():       # an empty file is reported below, not warned
+                warnings.simplefilter("ignore", UserWarning)
+                data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
         except (OSError, ValueError, UnicodeDecodeError) as exc:
             raise ValueError(f"{src}: not a readable CSV trajectory ({exc})") from None
+        if data.size == 0:
+            raise ValueError(f"{src}: no data rows below the header")
         if data.shape[1] != len(names):
             raise ValueError(f"{src}: header has {len(names)} columns but rows have {data.shape[1]}")
         if len(set(names)) != len(names):
