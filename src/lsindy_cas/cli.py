@@ -27,6 +27,10 @@ SIMULATE_EXAMPLE = """examples:
   lsindy simulate model.json --x0 "0,pi/4,0,0" --t-end 1 --u "x=1.0" --dt 0.005 --out pushed.csv
   lsindy simulate model.json --x0 "0,pi/4,0,0" --u-file recorded.csv --out replay.csv"""
 
+EXPORT_EXAMPLE = """example:
+  mkdir -p model_c && lsindy export model.json --c model_c --dt 0.05
+  gcc -O2 -c model_c/lsindy_model.c -o model_c/lsindy_model.o"""
+
 LIBRARY_EXAMPLE = """example:
   lsindy library --coords x,theta --features "cos(theta),sin(theta),theta_dot,x,x_dot" --degree 3"""
 
@@ -277,6 +281,27 @@ def _simulate(args) -> int:
     return 0
 
 
+def _export(args) -> int:
+    from .export import export_c
+    from .identify.estimator import LagrangianSINDy
+
+    if not args.dt > 0 or args.dt != args.dt or args.dt == float("inf"):
+        raise ValueError(f"--dt must be a positive number of seconds, got {args.dt}")
+    if args.substeps < 1:
+        raise ValueError(f"--substeps must be a positive integer, got {args.substeps}")
+    from pathlib import Path
+    folder = Path(args.c)
+    if not folder.is_dir():
+        raise ValueError(f"--c {folder}: no such directory (create it first)")
+    from ._io import output_dir
+    output_dir(folder, "--c")
+    model = LagrangianSINDy.load(args.model)
+    paths = export_c(model, folder, dt=args.dt, n_substeps=args.substeps, name=args.name,
+                     source=str(args.model))
+    print("written: " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 def _library_arguments(parser):
     parser.add_argument("--coords", required=True, help="coordinate names, comma-separated (x,theta)")
     parser.add_argument("--features", required=True,
@@ -363,6 +388,19 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", required=True, metavar="OUT.csv",
                      help="output trajectory (.csv or .npz; its folder must exist)")
     sim.set_defaults(func=_simulate)
+
+    exp = sub.add_parser("export", help="write a saved model's ODE and RK4 step as C code",
+                         description=_wrap("Generate C code (CasADi) for a saved model's equations "
+                         "of motion, (x, u) -> x_dot, and for one integrator step at --dt (the "
+                         "MPC's RK4 map), with a header and a README of the calling convention."),
+                         epilog=EXPORT_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    exp.add_argument("model", metavar="MODEL.json", help="saved model file")
+    exp.add_argument("--c", required=True, metavar="DIR", help="existing folder for the C files")
+    exp.add_argument("--dt", type=float, default=0.05, help="step length in seconds (default 0.05)")
+    exp.add_argument("--substeps", type=int, default=1, help="RK4 steps per --dt (default 1)")
+    exp.add_argument("--name", default="lsindy_model",
+                     help="file base name and C prefix (default lsindy_model)")
+    exp.set_defaults(func=_export)
 
     try:
         from .paper.swingup import add_swingup_arguments, run_from_args
