@@ -99,7 +99,7 @@ def _identify(args) -> int:
                          "(paper eq. 8)")
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=_split(args.prior), form=args.form,
                             window=args.window, smoothing=args.smoothing,
-                            max_terms=args.max_terms)
+                            max_terms=args.max_terms, hold=args.hold)
     from .progress import ProgressBar
     with ProgressBar("searching supports") as bar:
         model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
@@ -337,6 +337,10 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--smoothing", choices=["auto", "none"], default="auto",
                        help="integral form: smooth the measured states with a strength chosen from "
                        "the data (auto, default) or use them as measured (none)")
+    ident.add_argument("--hold", choices=["auto", "zoh", "smooth"], default="auto",
+                       help="what a Q_<q> sample means: zoh = held over [t_i, t_i+1) (a digital "
+                       "controller's output), smooth = a smoothly varying force sampled; auto "
+                       "(default) decides from the data")
     ident.add_argument("--max-terms", type=int, default=None, metavar="K",
                        help="automatic k: the largest k tried")
     ident.add_argument("--window", type=int, default=None, metavar="N",

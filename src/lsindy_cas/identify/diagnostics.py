@@ -91,6 +91,10 @@ class Diagnostics:
         Known traps, in plain words.
     warnings : list of str
         Everything that makes the result doubtful; empty on well-posed data.
+    hold : str or None
+        The input hold the work integral used ("zoh", "smooth"; None without a work integral).
+    hold_errors : dict
+        When the hold was decided from the data: held-out error of the model under each hold.
     """
 
     near_ties: list = field(default_factory=list)
@@ -104,6 +108,8 @@ class Diagnostics:
     conserved: list = field(default_factory=list)
     traps: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    hold: str | None = None
+    hold_errors: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -118,7 +124,8 @@ class Diagnostics:
                 "k_path": [{"k": k, "held_out_error": e, "chi": c if np.isfinite(c) else None}
                            for k, e, c in self.k_path],
                 "k_automatic": self.k_automatic, "noise": self.noise,
-                "conserved": self.conserved, "traps": self.traps, "warnings": self.warnings}
+                "conserved": self.conserved, "traps": self.traps, "warnings": self.warnings,
+                "hold": self.hold, "hold_errors": self.hold_errors}
 
     def __str__(self) -> str:
         lines = ["diagnostics:"]
@@ -132,6 +139,11 @@ class Diagnostics:
         if np.isfinite(self.chi):
             lines.append(f"  residual / expected noise: {self.chi:.3g} "
                          "(≈ 1 means it fits to within the noise)")
+        if self.hold is not None:
+            how = ("chosen from the data: held-out error " + ", ".join(
+                f"{h} {e:.1e}" for h, e in self.hold_errors.items()) if self.hold_errors
+                else "held input" if self.hold == "zoh" else "smooth input")
+            lines.append(f"  input hold of the work integral: {self.hold} ({how})")
         lines.append("  undetermined directions on the support (near-null space): "
                      f"{self.null_dim}")
         if self.noise:

@@ -1,6 +1,7 @@
 """``LagrangianSINDy``: trajectories -> energy (H) -> Lagrangian (L) -> equations of motion."""
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from ..symbolic.library import Library
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
 from .search import _normalise
 from .selection import Significant, select
-from ..data.smoothing import smooth
+from ..data.smoothing import force_switches, smooth
 from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
     row_gradients, sample_weights
 
@@ -26,6 +27,7 @@ __all__ = ["LagrangianSINDy"]
 
 _FORMS = ("auto", "derivative", "integral")
 _SMOOTHING = ("auto", "none")
+_HOLDS = ("auto", "zoh", "smooth")
 
 
 def _check_trajectories(trajectories, coords, what="trajectories") -> list:
@@ -68,6 +70,13 @@ class LagrangianSINDy:
         level is estimated and the coefficients are corrected for noise in the regressors.
     max_terms : int, optional
         Automatic k: the largest k tried.
+    hold : {"auto", "zoh", "smooth"}
+        Integral form: what a sample ``Q_i`` of the applied force means.  "zoh": it is held over
+        [t_i, t_{i+1}) (a digital controller's output; the work is Q_i ∫ q̇ dt per interval);
+        "smooth": the force varies smoothly and the power is integrated as a spline.  "auto"
+        (default): a force that is constant or changes at few samples is held; one that changes
+        at most samples is ambiguous — both work integrals are fitted and the one with the
+        smaller held-out error is kept.  ``hold_`` says which was used.
 
     Attributes (after ``fit``)
     --------------------------
@@ -83,10 +92,13 @@ class LagrangianSINDy:
     passive_ : bool               whether the passive (null-space + scale) scheme was used
     smoothing_ : list of Smoothed or None
     diagnostics_ : Diagnostics    near ties, null space, traps, warnings (print it)
+    hold_ : str or None           the input hold used by the work integral ("zoh"/"smooth"; None
+                                  when no work integral was needed)
     """
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
-                 window: int | None = None, smoothing: str = "auto", max_terms: int | None = None):
+                 window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
+                 hold: str = "auto"):
         self.library = library
         self.n_terms = n_terms
         self.prior = prior
@@ -94,6 +106,7 @@ class LagrangianSINDy:
         self.window = window
         self.smoothing = smoothing
         self.max_terms = max_terms
+        self.hold = hold
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
@@ -113,6 +126,8 @@ class LagrangianSINDy:
                 raise ValueError(f"{len(set(forced))} prior terms do not fit in {name} = {k}")
         if self.form not in _FORMS:
             raise ValueError(f"form must be one of {_FORMS}, got {self.form!r}")
+        if self.hold not in _HOLDS:
+            raise ValueError(f"hold must be one of {_HOLDS}, got {self.hold!r}")
         if self.smoothing not in _SMOOTHING:
             raise ValueError(f"smoothing must be one of {_SMOOTHING}, got {self.smoothing!r}")
         if self.window is not None and (isinstance(self.window, bool)
@@ -130,7 +145,7 @@ class LagrangianSINDy:
         if self._form(trajectories) == "derivative":
             return derivative_form(self.library, trajectories, passive=passive)
         return integral_form(self.library, trajectories, window=self.window, passive=passive,
-                             weights=weights)
+                             weights=weights, hold=self._hold or "auto")
 
     def _prepare(self, trajectories):
         """States for the balance and their noise variance per row (integral form), or as given."""
@@ -160,6 +175,38 @@ class LagrangianSINDy:
         progress : callable ``(n_done, n_total)``, optional
             Progress of the support search (e.g. :class:`lsindy_cas.progress.ProgressBar`).
         """
+        self._validate()
+        coords = self.library.coords.names
+        holds = self._holds(_check_trajectories(trajectories, coords))
+        if len(holds) == 1:
+            return self._fit(trajectories, scale_trajectories, passive, progress, holds[0])
+        # A force that changes at most samples: a smooth force sampled, or a held one changing every
+        # sample.  The data decide: the wrong work integral leaves a systematic residual.
+        trials = []
+        for hold in holds:
+            trial = copy.copy(self)
+            trial._fit(trajectories, scale_trajectories, passive, progress, hold)
+            trials.append(trial)
+        best = min(trials, key=lambda m: m.diagnostics_.held_out_error)
+        self.__dict__.update(best.__dict__)
+        self.hold_errors_ = {m.hold_: m.diagnostics_.held_out_error for m in trials}
+        self.diagnostics_.hold_errors = self.hold_errors_
+        return self
+
+    def _holds(self, trajectories) -> list:
+        """The input holds to try: one when the data or the user settle it, else both."""
+        if self.hold != "auto":
+            return [self.hold]
+        if self._form(trajectories) == "derivative":
+            return [None]
+        varying = [tr for tr in trajectories if np.any(np.diff(tr.Q, axis=0))]
+        if all(force_switches(tr.Q).size for tr in varying):
+            return ["zoh"]              # constant, or changing at few samples: a held input
+        return ["zoh", "smooth"]
+
+    def _fit(self, trajectories, scale_trajectories, passive, progress, hold):
+        self._hold = hold
+        self.hold_ = hold
         forced = self._validate()
         lib = self.library
         coords = lib.coords.names
@@ -200,6 +247,7 @@ class LagrangianSINDy:
                                                    trajectories + (scale_list or []))]
         self._set_coefficients(coef, X=bal.X)
         self.diagnostics_ = diagnose(self, bal, trajectories, scale_system, admissible)
+        self.diagnostics_.hold = hold
         return self
 
     def _admissibility(self, bal, forced, scale_system, excluded):
@@ -290,6 +338,8 @@ class LagrangianSINDy:
             "prior": [str(p) for p in ([self.prior] if isinstance(self.prior, str) else self.prior)],
             "lsindy_cas_version": __version__,
         }
+        if getattr(self, "hold_", None) is not None:
+            out["hold"] = self.hold_
         diag = getattr(self, "diagnostics_", None)
         diag = diag.to_dict() if diag is not None else getattr(self, "_loaded_diagnostics", None)
         if diag is not None:           # the report of the fit travels with the model file
