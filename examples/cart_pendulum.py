@@ -16,7 +16,25 @@ from lsindy_cas import LagrangianSINDy, Library, printing, systems
 
 
 def main(t_end=1.0, out_dir=None, verbose=True):
-    """Identify from ``t_end`` s of pushed motion; save/load the model under ``out_dir``."""
+    """Identify from ``t_end`` s of pushed motion; save/load the model under ``out_dir``.
+
+    Parameters
+    ----------
+    t_end : float
+        Seconds of training data (the size knob).
+    out_dir : str or Path, optional
+        Folder for ``cart_model.json``; by default a temporary folder, removed afterwards.
+    verbose : bool
+        Print the model.
+
+    Returns
+    -------
+    LagrangianSINDy
+        The identified model, as loaded back from its JSON file (``.terms()`` gives H's terms).
+    """
+    if out_dir is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            return main(t_end, tmp, verbose)
     system = systems.cart_pendulum()
     data = system.simulate(t_end=t_end, u=1.0)
 
@@ -25,7 +43,7 @@ def main(t_end=1.0, out_dir=None, verbose=True):
     if verbose:
         print(printing.describe(model, digits=3))
 
-    out_dir = Path(out_dir or tempfile.mkdtemp())
+    out_dir = Path(out_dir)
     path = model.save(out_dir / "cart_model.json")
     loaded = LagrangianSINDy.load(path)
     if verbose:

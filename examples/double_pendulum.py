@@ -14,7 +14,13 @@ from lsindy_cas import LagrangianSINDy, Library, printing, systems
 
 
 def main(t_end=3.0, t_check=6.0, verbose=True):
-    """Train on ``t_end`` s of free motion; compare simulations over ``t_check`` s."""
+    """Train on ``t_end`` s of free motion; compare simulations over ``t_check`` s.
+
+    Returns
+    -------
+    LagrangianSINDy
+        The identified model (``.terms()`` gives H's terms).
+    """
     system = systems.double_pendulum()
     free = system.simulate(t_end=t_end, u=0.0)               # passive: no energy fed in
     push = system.simulate(t_end=0.1, u=1.0)                 # scale trial: 1 N·m on link 1

@@ -13,8 +13,10 @@ To use your own recordings, replace ``write_example_files`` with your files and 
         --features "cos(theta),sin(theta),theta_dot,x,x_dot" --degree 3 \\
         --terms 4 --prior "theta_dot**2,cos(theta)" --json model.json
 
-Run:  python examples/own_csv_data.py
+Run:  python examples/own_csv_data.py [OUT_DIR]    (without OUT_DIR the files go to a temporary
+folder that is removed at the end)
 """
+import sys
 import tempfile
 from pathlib import Path
 
@@ -39,8 +41,28 @@ def write_example_files(out_dir, t_end):
 
 
 def main(t_end=4.0, out_dir=None, verbose=True):
-    """Identify from CSV files of ``t_end`` s each (written to ``out_dir``)."""
-    out_dir = Path(out_dir or tempfile.mkdtemp())
+    """Identify from CSV files of ``t_end`` s each, written to ``out_dir``.
+
+    Parameters
+    ----------
+    t_end : float
+        Seconds per recorded run (the size knob).
+    out_dir : str or Path, optional
+        Folder for ``run0.csv``, ``run1.csv`` and ``model.json`` (created if missing); by default a
+        temporary folder, removed afterwards.
+    verbose : bool
+        Print the model.
+
+    Returns
+    -------
+    LagrangianSINDy
+        The identified model (``.terms()`` gives H's terms).
+    """
+    if out_dir is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            return main(t_end, tmp, verbose)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     paths = write_example_files(out_dir, t_end)
 
     trajectories = load_trajectories(paths, COORDS)
@@ -61,4 +83,4 @@ def main(t_end=4.0, out_dir=None, verbose=True):
 
 
 if __name__ == "__main__":
-    main()
+    main(out_dir=sys.argv[1] if len(sys.argv) > 1 else None)

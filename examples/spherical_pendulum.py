@@ -14,7 +14,13 @@ from lsindy_cas import LagrangianSINDy, Library, printing, systems
 
 
 def main(t_end=1.0, t_check=2.0, verbose=True):
-    """Identify from ``t_end`` s of data; check the simulated motion over ``t_check`` s."""
+    """Identify from ``t_end`` s of data; check the simulated motion over ``t_check`` s.
+
+    Returns
+    -------
+    LagrangianSINDy
+        The identified model (``.terms()`` gives H's terms).
+    """
     system = systems.spherical_pendulum()
     data = system.simulate(t_end=t_end, u=1.0)               # 100 Hz, exact accelerations
 

@@ -1,3 +1,5 @@
+import functools
+import importlib
 import importlib.util
 from pathlib import Path
 
@@ -6,6 +8,35 @@ import pytest
 
 from lsindy_cas import systems
 from lsindy_cas.paper.table1 import PAPER_SETUPS
+
+
+# Optional dependencies a test may need: mark it ``@pytest.mark.needs("pysindy")`` and it is
+# skipped, with the install hint as the reason, when that package cannot be imported.  Per test,
+# so everything else in the file still runs without the extra.
+OPTIONAL = {"pysindy": "pip install 'lsindy_cas[bench]'"}
+
+
+@functools.lru_cache(maxsize=None)
+def _importable(name):
+    try:
+        importlib.import_module(name)
+    except ImportError:
+        return False
+    return True
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "needs(package): skip unless the optional package imports")
+
+
+def pytest_runtest_setup(item):
+    for mark in item.iter_markers(name="needs"):
+        for name in mark.args:
+            if name not in OPTIONAL:
+                raise ValueError(f"needs({name!r}): not an optional dependency, expected one of "
+                                 f"{sorted(OPTIONAL)}")
+            if not _importable(name):
+                pytest.skip(f"needs {name}, an optional dependency ({OPTIONAL[name]})")
 
 
 @pytest.fixture(scope="session")

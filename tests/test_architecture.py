@@ -1,0 +1,136 @@
+"""The package's shape: import rules between sub-packages, module size, a cheap top-level import.
+
+Imports are read from the source with :mod:`ast` — every ``import``/``from … import`` anywhere in a
+module (inside functions too), relative ones resolved to absolute module names, and
+``importlib.import_module("…")`` calls with a literal name — so a rule cannot be broken by a lazy
+import that a test run happens not to execute.
+"""
+import ast
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+PACKAGE = SRC / "lsindy_cas"
+MAX_LINES = 450          # the project's guide says ~400 lines per module; 450 is the hard limit
+
+# sub-package -> sub-packages of lsindy_cas it must never import
+FORBIDDEN = {
+    "control": {"identify", "paper"},           # a controller takes any object with an ode()
+    "identify": {"paper"},                       # the method does not know the paper's experiments
+    "symbolic": {"identify", "mechanics", "control", "paper"},
+    "data": {"identify", "mechanics", "control", "paper"},
+    "mechanics": {"identify", "control", "paper"},
+}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _resolve(module: str, is_package: bool, level: int, name) -> str:
+    """Absolute name of ``from <level dots><name> import …`` written in ``module``."""
+    if level == 0:
+        return name
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    if level > 1:
+        base = base[: len(base) - (level - 1)]
+    return ".".join(base + ([name] if name else []))
+
+
+def imports_of(path: Path) -> set:
+    """Every module name ``path`` imports, absolute (``from a import b`` counts ``a`` and ``a.b``)."""
+    module, is_package = _module_name(path), path.name == "__init__.py"
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = _resolve(module, is_package, node.level, node.module)
+            found.add(base)
+            found.update(f"{base}.{alias.name}" for alias in node.names if alias.name != "*")
+        elif (isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", None))
+              == "import_module" and node.args and isinstance(node.args[0], ast.Constant)
+              and isinstance(node.args[0].value, str)):
+            found.add(node.args[0].value)
+    return found
+
+
+def _modules():
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def _subpackage(path: Path):
+    rel = path.relative_to(PACKAGE).parts
+    return rel[0] if len(rel) > 1 else None
+
+
+def test_the_import_reader_resolves_relative_and_lazy_imports(tmp_path, monkeypatch):
+    """The reader itself, on a module written for it (a rule checker that reads nothing passes)."""
+    pkg = tmp_path / "lsindy_cas" / "control"
+    pkg.mkdir(parents=True)
+    mod = pkg / "thing.py"
+    mod.write_text("import numpy as np\nfrom .mpc import x\nfrom ..identify import search\n"
+                   "def f():\n    from ...elsewhere.z import y\n    import lsindy_cas.paper.systems\n"
+                   "    importlib.import_module('lsindy_cas.identify.balance')\n")
+    monkeypatch.setitem(globals(), "SRC", tmp_path)
+    assert imports_of(mod) == {
+        "numpy", "lsindy_cas.control.mpc", "lsindy_cas.control.mpc.x", "lsindy_cas.identify",
+        "lsindy_cas.identify.search", "elsewhere.z", "elsewhere.z.y", "lsindy_cas.paper.systems",
+        "lsindy_cas.identify.balance"}
+    assert _resolve("lsindy_cas.control", True, 1, "mpc") == "lsindy_cas.control.mpc"
+
+
+@pytest.mark.parametrize("subpackage", sorted(FORBIDDEN))
+def test_import_rules(subpackage):
+    files = [p for p in _modules() if _subpackage(p) == subpackage]
+    assert files, f"no modules found under lsindy_cas/{subpackage}"
+    broken = []
+    for path in files:
+        for name in sorted(imports_of(path)):
+            parts = name.split(".")
+            if parts[0] == "lsindy_cas" and len(parts) > 1 and parts[1] in FORBIDDEN[subpackage]:
+                broken.append(f"{path.relative_to(SRC)} imports {name}")
+    assert not broken, "\n".join(broken)
+
+
+def test_every_subpackage_but_paper_has_an_import_rule():
+    subs = {p.parent.name for p in PACKAGE.glob("*/__init__.py")}
+    # paper/ builds on everything; every other sub-package has its rule above
+    assert subs - set(FORBIDDEN) == {"paper"}, subs
+
+
+def test_modules_are_short():
+    long = {str(p.relative_to(SRC)): n for p in _modules()
+            if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert not long, f"modules over {MAX_LINES} lines: {long}"
+
+
+def _run(code):
+    env = dict(os.environ, PYTHONPATH=str(SRC))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def test_importing_the_package_is_cheap():
+    """``import lsindy_cas`` (and so the command line's start) loads neither sympy nor casadi."""
+    out = _run("import sys, lsindy_cas\n"
+               "print(sorted(m for m in sys.modules if m.split('.')[0] in ('sympy', 'casadi')))")
+    assert out.strip() == "[]", out
+
+
+def test_public_imports():
+    out = _run("from lsindy_cas import Library, LagrangianSINDy, Trajectory, load_trajectories, systems\n"
+               "from lsindy_cas.mpc import SwingUpMPC\n"
+               "print(Library.__name__, LagrangianSINDy.__name__, Trajectory.__name__,\n"
+               "      load_trajectories.__name__, systems.cart_pendulum.__name__, SwingUpMPC.__name__)")
+    assert out.split() == ["Library", "LagrangianSINDy", "Trajectory", "load_trajectories",
+                           "cart_pendulum", "SwingUpMPC"]
