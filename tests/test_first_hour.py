@@ -178,3 +178,13 @@ def test_simulate_u_file_bad_input(cart_model, tmp_path):
     r = run_cli("simulate", cart_model, "--x0", "0,0,0,0", "--u-file", bad, "--t-end", "1",
                 "--out", tmp_path / "o.csv")
     assert r.returncode == 2 and "--t-end" in r.stderr
+
+
+def test_model_with_negative_kinetic_energy_is_refused(cart_model, tmp_path):
+    d = json.loads(cart_model.read_text())
+    d["hamiltonian_terms"]["x_dot**2"] = -0.55          # a hand-edited sign
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(d))
+    r = run_cli("simulate", bad, "--x0", "0,0.5,0,0", "--t-end", "1", "--out", tmp_path / "s.csv")
+    assert r.returncode == 2 and "not positive definite" in r.stderr
+    assert not (tmp_path / "s.csv").exists()

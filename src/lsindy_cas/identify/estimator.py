@@ -372,8 +372,26 @@ class LagrangianSINDy:
         model = cls(lib, n_terms=max(1, len(terms)), prior=d.get("prior", ()))
         model.actuated_ = list(d.get("actuated", []))
         model._loaded_diagnostics = d.get("diagnostics")
+        model.hold_ = d.get("hold")
         model._set_coefficients(coef)
+        _check_kinetic(model, path)
         return model
+
+
+def _check_kinetic(model, path, n_states: int = 64):
+    """Refuse a model whose mass matrix ∂²L/∂q̇² has a negative eigenvalue at a random state
+    (q ∈ [−π, π], q̇ ∈ [−1, 1]): a negative kinetic energy (e.g. a hand-edited sign) makes the
+    equations of motion meaningless.  Singular points (sin²θ at the pole) are allowed."""
+    M = model._mechanics.mass_matrix()
+    n = len(model.coords_)
+    rng = np.random.default_rng(0)
+    X = np.hstack([rng.uniform(-np.pi, np.pi, (n_states, n)), rng.uniform(-1, 1, (n_states, n))])
+    for x in X:
+        eig = np.linalg.eigvalsh(np.asarray(M(x)))
+        if eig[0] < -1e-9 * max(1.0, abs(eig[-1])):
+            raise ValueError(f"{path}: the kinetic part is not positive definite (mass matrix "
+                             f"eigenvalue {eig[0]:.3g} at state {np.round(x, 3).tolist()}); "
+                             f"check the signs of the velocity terms")
 
 
 def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
