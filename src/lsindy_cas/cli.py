@@ -101,7 +101,7 @@ def _identify(args) -> int:
                             window=args.window, smoothing=args.smoothing,
                             max_terms=args.max_terms, hold=args.hold)
     from .progress import ProgressBar
-    with ProgressBar("searching supports") as bar:
+    with ProgressBar("searching supports", unit="supports") as bar:
         model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
     print(model)
     print()

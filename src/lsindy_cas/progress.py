@@ -1,16 +1,17 @@
-"""A progress bar with an estimate of the time left, for long searches (on stderr).
+"""Progress of long work on stderr, drawn by tqdm (ETA, rates, notebooks), silent when quick.
 
 The subset search reports ``progress(n_done, n_total)`` after each batch of supports.  A
-:class:`ProgressBar` is such a callable: it stays silent for searches that finish within
-``delay`` seconds, and otherwise redraws one line, at most every ``interval`` seconds::
+:class:`ProgressBar` is such a callable: nothing happens for work that finishes within ``delay``
+seconds — tqdm is not even imported (it costs ~0.08 s, 4 % of a quick ``lsindy identify``) — and
+otherwise a tqdm bar is drawn::
 
-    searching supports  [#########...........]  45%  1.2M/2.7M  ETA 0:14
+    searching supports:  45%|#########           | 1.2M/2.7M [00:11<00:14, 110ksupports/s]
 
 Used as a context manager it finishes the line when the work ends, and when the user presses
-Ctrl-C it ends the line with how far the search got before letting the ``KeyboardInterrupt``
-through (the ``lsindy`` command then exits with status 130)::
+Ctrl-C it says how far the work got before letting the ``KeyboardInterrupt`` through (the
+``lsindy`` command then exits with status 130)::
 
-    with ProgressBar("searching supports") as bar:
+    with ProgressBar("searching supports", unit="supports") as bar:
         best_subset(A, b, k, progress=bar)
 """
 from __future__ import annotations
@@ -18,27 +19,11 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["ProgressBar", "format_seconds", "format_count"]
-
-
-def format_seconds(seconds: float) -> str:
-    """``75.4`` -> ``'1:15'``; ``3725`` -> ``'1:02:05'``."""
-    s = int(round(max(seconds, 0.0)))
-    h, rem = divmod(s, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
-
-
-def format_count(n: int) -> str:
-    """``1234`` -> ``'1234'``, ``1_234_567`` -> ``'1.2M'``."""
-    for div, unit in ((1e9, "G"), (1e6, "M"), (1e4, "k")):
-        if n >= div:
-            return f"{n / div:.1f}{unit}" if unit != "k" else f"{n / 1e3:.0f}k"
-    return str(n)
+__all__ = ["ProgressBar"]
 
 
 class ProgressBar:
-    """Callable ``(n_done, n_total)`` drawing a bar with an ETA on a terminal.
+    """Callable ``(n_done, n_total)`` that shows a tqdm bar once the work has lasted ``delay`` s.
 
     Parameters
     ----------
@@ -48,98 +33,67 @@ class ProgressBar:
         Where to draw (default ``sys.stderr``).  Nothing is drawn unless it is a terminal or
         ``force`` is set, so logs and pipes stay clean.
     delay : float
-        Seconds of work before the bar appears (short searches show nothing).
+        Seconds of work before the bar appears (short work shows nothing).
     interval : float
         Minimum seconds between redraws.
-    width : int
-        Characters in the bar itself.
+    unit : str
+        What is counted.
     force : bool
         Draw even when ``stream`` is not a terminal (tests, notebooks).
     clock : callable, optional
-        Returns the time in seconds (default ``time.monotonic``); injectable for tests.
+        Returns the time in seconds for the ``delay`` (default ``time.monotonic``).
     """
 
     def __init__(self, label: str = "working", *, stream=None, delay: float = 0.5,
-                 interval: float = 0.1, width: int = 24, force: bool = False, clock=None):
+                 interval: float = 0.1, unit: str = "it", force: bool = False, clock=None):
         self.label = label
         self.stream = sys.stderr if stream is None else stream
         self.delay = float(delay)
         self.interval = float(interval)
-        self.width = int(width)
+        self.unit = unit
         self.clock = clock or time.monotonic
         isatty = getattr(self.stream, "isatty", None)
         self.enabled = force or bool(isatty and isatty())
         self.start = self.clock()
         self.n_done = 0
         self.n_total = 0
-        self._shown = False
-        self._last_draw = -float("inf")
-        self._last_len = 0
-
-    # ------------------------------------------------------------------ drawing
-    def line(self, n_done: int, n_total: int) -> str:
-        """The text of the bar for this state (no carriage return)."""
-        frac = min(max(n_done / n_total, 0.0), 1.0) if n_total else 0.0
-        filled = int(round(frac * self.width))
-        elapsed = self.clock() - self.start
-        if n_done >= n_total and n_total:
-            eta = f"done in {format_seconds(elapsed)}"
-        elif n_done > 0:
-            eta = f"ETA {format_seconds(elapsed * (n_total - n_done) / n_done)}"
-        else:
-            eta = "ETA --:--"
-        return (f"{self.label}  [{'#' * filled}{'.' * (self.width - filled)}]  {frac:4.0%}  "
-                f"{format_count(n_done)}/{format_count(n_total)}  {eta}")
-
-    def _write(self, text: str):
-        pad = " " * max(0, self._last_len - len(text))
-        self.stream.write("\r" + text + pad)
-        self.stream.flush()
-        self._last_len = len(text)
+        self._bar = None
 
     def __call__(self, n_done: int, n_total: int) -> None:
         self.n_done, self.n_total = int(n_done), int(n_total)
         if not self.enabled:
             return
-        now = self.clock()
-        finished = self.n_total and self.n_done >= self.n_total
-        if now - self.start < self.delay and not self._shown:
-            return
-        if now - self._last_draw < self.interval and not finished:
-            return
-        self._shown = True
-        self._last_draw = now
-        self._write(self.line(self.n_done, self.n_total))
+        if self._bar is None:
+            if self.clock() - self.start < self.delay:
+                return
+            from tqdm import tqdm
 
-    def close(self, message: str | None = None) -> None:
-        """End the bar's line (and print ``message`` on it, if given)."""
-        if self._shown:
-            if message is not None:
-                self._write(message)
-            self.stream.write("\n")
-            self.stream.flush()
-            self._shown = False
-        elif message is not None and self.enabled:
-            self.stream.write(message + "\n")
-            self.stream.flush()
+            self._bar = tqdm(total=self.n_total, desc=self.label, file=self.stream,
+                             mininterval=self.interval, unit=self.unit, unit_scale=True,
+                             leave=True, dynamic_ncols=True)
+        if self._bar.total != self.n_total:
+            self._bar.total = self.n_total
+        self._bar.update(self.n_done - self._bar.n)
 
-    # ------------------------------------------------------------------ context manager
+    @property
+    def shown(self) -> bool:
+        """Whether the bar has appeared."""
+        return self._bar is not None
+
+    def close(self) -> None:
+        """Finish the bar's line (if it appeared)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
     def __enter__(self) -> "ProgressBar":
         self.start = self.clock()
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
-        if exc_type is KeyboardInterrupt:
-            done = (f" after {format_count(self.n_done)}/{format_count(self.n_total)}"
-                    if self.n_total else "")
-            # always say so on an interrupt, terminal or not, so the user knows what stopped
-            if self._shown:
-                self.close(f"{self.label}: interrupted{done}")
-            else:
-                self.stream.write(f"{self.label}: interrupted{done}\n")
-                self.stream.flush()
-        elif exc_type is None and self._shown:
-            self.close(self.line(self.n_total or self.n_done, self.n_total or self.n_done))
-        else:
-            self.close()
+        self.close()
+        if exc_type is KeyboardInterrupt:   # always say so, terminal or not: the user pressed it
+            done = f" after {self.n_done:,}/{self.n_total:,}" if self.n_total else ""
+            self.stream.write(f"{self.label}: interrupted{done}\n")
+            self.stream.flush()
         return False
