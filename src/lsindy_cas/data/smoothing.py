@@ -31,6 +31,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from .._validate import check_int
 from .trajectory import Trajectory
 
 __all__ = ["Smoothed", "smooth", "whittaker", "force_switches", "finite_difference", "add_noise",
@@ -155,8 +156,7 @@ def whittaker(t, y, *, order: int = 3, lam: float | None = None, undersmooth: fl
     Y = y[:, None] if col else y
     if Y.ndim != 2 or Y.shape[0] != len(t):
         raise ValueError(f"y must have {len(t)} rows (one per sample), got shape {y.shape}")
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 6:
-        raise ValueError(f"order must be an integer between 1 and 6, got {order!r}")
+    check_int("order", order, low=1, high=6)
     if not 0 < undersmooth <= 1:
         raise ValueError(f"undersmooth must be in (0, 1], got {undersmooth}")
     if lam is not None and not lam >= 0:

@@ -1,31 +1,90 @@
-"""Physical admissibility of a candidate energy: what separates the true energy from spurious fits.
+"""Every rule a candidate energy must pass: what separates the true energy from spurious fits.
 
 A fit can be perfect and still not be an energy.  With a constant input u on a cyclic coordinate x,
 E' = u·x satisfies dE'/dt = u·ẋ = P exactly; with passive data any conserved quantity (e.g. an
-angular momentum) lies in the null space.  An admissible energy
+angular momentum) lies in the null space.  The rules, in the order a candidate meets them:
 
-1. uses every prior term with a non-zero coefficient (prior knowledge says they are there),
-2. uses every term of its support (a k-term fit with a vanishing coefficient is a smaller model
-   plus round-off, e.g. E' = u·x + 1e-18·ẋ²), and
-3. has a positive-definite kinetic part: M(x) = ∂²E/∂q̇² ≻ 0 at every sample state.
+Inside the search (cheap, batched over supports, before any coefficient is fitted):
+
+0. **reducible** (:func:`reducible`) — the support's own fitted (or null) vector has a vanishing
+   entry: a k-term fit that is a smaller model plus round-off, e.g. E' = u·x + 1e-18·ẋ²;
+0'. **scale** (``NO_SCALE_REASON``) — passive data: the actuated record must fix the scale.
+
+Then :class:`Admissibility`, ``(support, coef) -> (ok, reason)``:
+
+1. **excluded terms** — no coordinate whose coefficient a constant input leaves undetermined
+   (:func:`lsindy_cas.identify.diagnostics.constant_force_trap`);
+2. **no velocity-linear term** — no energy has one (:func:`lsindy_cas.mechanics.legendre.velocity_linear`);
+3. **prior terms present** — every prior term has a non-zero coefficient;
+4. **every term used** — no support term came out zero (the fit is a smaller model);
+5. **positive kinetic part** — M(x) = ∂²E/∂q̇² ≻ 0 at every sample state;
+6. **significance** (when a balance is given) — every coefficient has |t| ≥ T_CRIT in a
+   delete-a-block jackknife (:class:`lsindy_cas.identify.uncertainty.Jackknife`), a dimensionless
+   test that keeps noise-fitting terms out without a threshold in the units of the data.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..mechanics.legendre import velocity_linear
 from ..symbolic.library import Library
+from .fitting import column_norms
+from .uncertainty import T_CRIT, Jackknife
 
-__all__ = ["Admissibility"]
+__all__ = ["Admissibility", "reducible", "REDUCIBLE_TOL", "REDUCIBLE_REASON", "NO_SCALE_REASON",
+           "PRIOR_SHARE_TOL", "PD_RTOL"]
 
 # A prior term "is present" when its share of the fitted signal exceeds this fraction of the
 # largest term's share; spurious fits put ~1e-12 there (round-off), true terms ≥ 1e-3.
 PRIOR_SHARE_TOL = 1e-6
 # M(x) counts as positive definite when λ_min > this fraction of λ_max at every sample.
 PD_RTOL = 1e-9
+# A support is reducible when its smallest normalised coefficient is below this fraction of the
+# largest: exact traps put ~1e-12 there, genuine terms ≥ 1e-3 even when small.
+REDUCIBLE_TOL = 1e-6
+REDUCIBLE_REASON = "a coefficient came out zero: the support is really a smaller one"
+NO_SCALE_REASON = "scale trial cannot fix the scale"
+EXCLUDED_REASON = ("uses a coordinate whose coefficient a constant input leaves "
+                   "undetermined (E and E − u·x fit equally)")
+LINEAR_REASON = ("has a term linear in the velocities, which no energy has (it cancels "
+                 "in H = p·q̇ − L): a momentum-like conserved quantity, not the energy")
+
+
+def reducible(G: np.ndarray, c: np.ndarray | None, S: np.ndarray, tol: float = REDUCIBLE_TOL,
+              chunk: int = 100_000) -> np.ndarray:
+    """Rule 0, batched: does the fitted (or null) vector of each support have a vanishing entry?
+
+    Parameters
+    ----------
+    G, c : arrays (p, p), (p,) or None
+        Normal equations of the column-normalised design matrix
+        (:func:`lsindy_cas.identify.fitting.normal_equations`); ``c`` None for passive data.
+    S : int array (n, k)
+        Supports.
+
+    Returns
+    -------
+    bool array (n,); a chunk whose Gram matrices are singular is left unmarked.
+    """
+    out = np.zeros(len(S), dtype=bool)
+    for lo in range(0, len(S), chunk):
+        Sc = S[lo:lo + chunk]
+        GS = G[Sc[:, :, None], Sc[:, None, :]]
+        with np.errstate(all="ignore"):
+            if c is None:
+                v = np.linalg.eigh(GS)[1][:, :, 0]
+            else:
+                try:
+                    v = np.linalg.solve(GS, c[Sc][:, :, None])[:, :, 0]
+                except np.linalg.LinAlgError:
+                    continue
+        a = np.abs(v)
+        out[lo:lo + chunk] = ~(a.min(axis=1) > tol * a.max(axis=1))
+    return out
 
 
 class Admissibility:
-    """Callable ``(support, coef) -> (ok, reason)`` for :func:`lsindy_cas.identify.search.best_subset`.
+    """Rules 1–6 as one callable ``(support, coef) -> (ok, reason)`` (full-library indices).
 
     Parameters
     ----------
@@ -36,17 +95,56 @@ class Admissibility:
         Indices of the prior terms.
     column_norms : array (p,)
         Norms of the design-matrix columns (to compare term contributions scale-free).
+    balance : EnergyBalance, optional
+        Enables rule 6 (jackknife significance) on this balance.
+    scale_system : (A_s, b_s), optional
+        Passive scheme: the scale record the jackknife refits with.
+    excluded : sequence of int
+        Terms no candidate may use (rule 1).
     """
 
-    def __init__(self, library: Library, X: np.ndarray, forced, column_norms: np.ndarray):
+    def __init__(self, library: Library, X: np.ndarray, forced, column_norms: np.ndarray, *,
+                 balance=None, scale_system=None, excluded=()):
         self.library = library
         self.forced = list(forced)
         self.norms = np.asarray(column_norms, float)
+        self.balance = balance
+        self.scale_system = scale_system
+        self.excluded = set(int(j) for j in excluded)
+        self._jack = None
         # subsample states for the PD check: enough to cover the data, cheap to evaluate
         step = max(1, len(X) // 400)
         self.hess = library.d2theta_dqd2(X[::step])        # (s, n, n, p)
 
+    @classmethod
+    def for_balance(cls, library: Library, bal, forced, scale_system=None, excluded=()):
+        """All six rules for candidates fitted on ``bal``.
+
+        Term shares are judged on the driven balance's columns — for passive data on the actuated
+        scale record's, where the terms' contributions are not cancelling by construction.
+        """
+        A = scale_system[0] if bal.passive else bal.A
+        return cls(library, bal.X, forced, column_norms(A), balance=bal,
+                   scale_system=scale_system, excluded=excluded)
+
     def __call__(self, support, coef):
+        if self.excluded & set(support):
+            return False, EXCLUDED_REASON
+        if velocity_linear(self.library, support):
+            return False, LINEAR_REASON
+        ok, why = self.physical(support, coef)
+        if not ok or self.balance is None:
+            return ok, why
+        S = list(support)
+        if self._jack is None:
+            self._jack = Jackknife(self.balance)
+        t = self._jack.t(S, coef[S], scale_system=self.scale_system)
+        if np.any(t < T_CRIT):
+            return False, f"a term is not significantly non-zero (jackknife |t| < {T_CRIT})"
+        return True, "admissible"
+
+    def physical(self, support, coef):
+        """Rules 3–5 only: prior terms present, every term used, kinetic part positive definite."""
         share = np.abs(coef) * self.norms
         top = share.max()
         if top == 0:

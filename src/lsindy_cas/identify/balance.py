@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validate import check_choice, check_int
 from ..data.trajectory import Trajectory
 from ..symbolic.library import Library
 from ..data.smoothing import force_switches
@@ -104,8 +105,7 @@ def derivative_form(library: Library, trajectories, passive: bool | None = None)
 
 
 def _resolve_hold(tr: Trajectory, hold: str) -> str:
-    if hold not in HOLDS:
-        raise ValueError(f"hold must be one of {HOLDS}, got {hold!r}")
+    check_choice("hold", hold, HOLDS)
     if hold != "auto":
         return hold
     constant = not np.any(np.diff(tr.Q, axis=0))
@@ -175,10 +175,8 @@ def integral_form(library: Library, trajectories, window: int | None = None, str
     EnergyBalance
     """
     if window is not None:
-        if isinstance(window, bool) or not isinstance(window, (int, np.integer)):
-            raise TypeError(f"window must be an integer or None, got {type(window).__name__}")
-        if window < 1 or stride < 1:
-            raise ValueError(f"window and stride must be at least 1, got {window}, {stride}")
+        check_int("window", window, low=1)
+        check_int("stride", stride, low=1)
         if weights is not None:
             raise ValueError("weights are only supported by the all-windows form (window=None)")
     passive = _is_passive(trajectories) if passive is None else passive

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .balance import EnergyBalance
-from .selection import coef_on_support
+from .fitting import coef_on_support, normalise_columns, null_vector
 
-__all__ = ["Diagnostics", "ConstantForceTrap", "constant_force_trap", "diagnose",
+__all__ = ["Diagnostics", "ConstantForceTrap", "FitRecord", "constant_force_trap", "diagnose",
            "conserved_quantities", "NEAR_TIE"]
 
 NEAR_TIE = 2.0          # an admissible support within this factor of the winner's score is a near tie
@@ -62,6 +62,48 @@ def constant_force_trap(library, trajectories, forced=()) -> ConstantForceTrap |
         if j not in set(forced):
             excluded.append(j)
     return ConstantForceTrap(coords, u, excluded, in_lib)
+
+
+@dataclass
+class FitRecord:
+    """What one fit produced, stage by stage: the input of :func:`diagnose`.
+
+    Attributes
+    ----------
+    library : Library
+    balance : EnergyBalance
+        The balance the coefficients were fitted on (the weighted one after refinement).
+    trajectories : list of Trajectory
+        The training runs as given.
+    scale_system : (A_s, b_s) or None
+        Passive scheme: the actuated scale record.
+    admissibility : Admissibility
+        The rules the chosen support passed.
+    selection : Selection
+        The support search and the choice of k.
+    coef : array (p,)
+        The energy's coefficients.
+    smoothing : list of Smoothed or None
+    trap : ConstantForceTrap or None
+    """
+
+    library: object
+    balance: EnergyBalance
+    trajectories: list
+    scale_system: tuple | None
+    admissibility: object
+    selection: object
+    coef: np.ndarray = field(repr=False)
+    smoothing: list | None = None
+    trap: ConstantForceTrap | None = None
+
+    @property
+    def search(self):
+        return self.selection.search
+
+    @property
+    def support(self) -> tuple:
+        return tuple(int(j) for j in np.flatnonzero(self.coef))
 
 
 @dataclass
@@ -171,17 +213,14 @@ def _null_dim(bal: EnergyBalance, S, score: float) -> int:
     coefficients along singular direction j scatter by √(score/m)/σ_j; undetermined when
     σ_j² ≤ 10·score/m.  Passive: relative to the smallest singular value (the energy itself).
     """
-    AS = bal.A[:, list(S)]
-    s = np.linalg.norm(AS, axis=0)
-    s[s == 0] = 1.0
-    sv = np.linalg.svd(AS / s, compute_uv=False)
+    sv = np.linalg.svd(normalise_columns(bal.A[:, list(S)])[0], compute_uv=False)
     if bal.passive:
         return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(sv[-1] ** 2, 1e-300)))
-    return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(score, 1e-300) / len(AS)))
+    return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(score, 1e-300) / len(bal.A)))
 
 
-def _near_ties(model, bal, admissible, n: int = 5) -> list:
-    res, lib = model.search_, model.library
+def _near_ties(fit: FitRecord, n: int = 5) -> list:
+    res, lib, bal, admissible = fit.search, fit.library, fit.balance, fit.admissibility
     out, seen = [], {tuple(res.support)}
     base = max(res.score, _NUMERICAL_ZERO)     # exact fits tie at the level of round-off
     for c in res.candidates:
@@ -225,10 +264,7 @@ def conserved_quantities(library, bal: EnergyBalance, candidates, energy_coef, f
         if c.score > floor:
             break
         S = list(c.support)
-        A = bal.A[:, S]
-        s = np.linalg.norm(A, axis=0)
-        s[s == 0] = 1.0
-        eta = np.linalg.svd(A / s, full_matrices=False)[2][-1] / s
+        eta = null_vector(bal.A[:, S])
         g = _gradient_field(grads, S, eta)
         if _independent(basis + [g]):
             basis.append(g)
@@ -251,29 +287,28 @@ def _independent(fields) -> bool:
     return bool(np.median(sv[:, -1]) > 1e-3)
 
 
-def diagnose(model, bal: EnergyBalance, trajectories, scale_system=None, admissible=None) -> Diagnostics:
-    """Build the report for a fitted :class:`~lsindy_cas.identify.estimator.LagrangianSINDy`."""
-    lib, sel = model.library, model.selection_
+def diagnose(fit: FitRecord) -> Diagnostics:
+    """Build the report on a fit (:class:`FitRecord`, made by ``LagrangianSINDy.fit``)."""
+    lib, sel, bal = fit.library, fit.selection, fit.balance
     d = Diagnostics()
-    S = model.support_
+    S = fit.support
     step = next((s for s in sel.steps if s.k == sel.k), sel.steps[-1])
     d.held_out_error = float(step.cv)
     d.held_out_fold_median = float(np.median(step.cv_folds))
     d.chi = float(step.chi)
     d.k_automatic = bool(sel.automatic)
     d.k_path = [(s.k, float(s.cv), float(s.chi)) for s in sel.steps]
-    d.null_dim = _null_dim(bal, S, model.search_.score)
-    d.near_ties = _near_ties(model, bal, admissible)
-    if model.smoothing_:
+    d.null_dim = _null_dim(bal, S, fit.search.score)
+    d.near_ties = _near_ties(fit)
+    if fit.smoothing:
         names = list(lib.coords.names) + [c + "_dot" for c in lib.coords.names]
-        noise = np.sqrt(np.mean([s.noise ** 2 for s in model.smoothing_], axis=0))
+        noise = np.sqrt(np.mean([s.noise ** 2 for s in fit.smoothing], axis=0))
         d.noise = {n: float(v) for n, v in zip(names, noise)}
-    trap = getattr(model, "trap_", None)
-    if trap is not None:
-        d.traps.append(_constant_force_text(lib, trap, S))
+    if fit.trap is not None:
+        d.traps.append(_constant_force_text(lib, fit.trap, S))
     if bal.passive:
-        _passive_report(d, model, bal)
-    _warnings(d, model, bal)
+        _passive_report(d, fit)
+    _warnings(d, fit)
     return d
 
 
@@ -301,10 +336,10 @@ def _depends(expr, sym) -> bool:
     return sym in expr.free_symbols
 
 
-def _passive_report(d: Diagnostics, model, bal):
-    lib, res = model.library, model.search_
+def _passive_report(d: Diagnostics, fit: FitRecord):
+    lib, res = fit.library, fit.search
     floor = max(NEAR_TIE * res.score, _NUMERICAL_ZERO)
-    found = conserved_quantities(lib, bal, res.candidates, model.coef_, floor)
+    found = conserved_quantities(lib, fit.balance, res.candidates, fit.coef, floor)
     d.conserved = [_expression(lib, S, eta) for S, eta in found]
     if d.conserved:
         d.traps.append(f"the passive data conserve {1 + len(found)} quantities (energy and "
@@ -319,8 +354,8 @@ def _expression(lib, S, eta) -> str:
     return " ".join(parts).lstrip("+")
 
 
-def _warnings(d: Diagnostics, model, bal):
-    score = model.search_.score
+def _warnings(d: Diagnostics, fit: FitRecord):
+    score, bal = fit.search.score, fit.balance
     held_out = d.held_out_fold_median
     if not bal.passive and max(score, held_out) > _POOR_FIT:
         d.warnings.append(f"the data cannot identify the energy: the best model leaves "

@@ -10,15 +10,15 @@ import sympy as sp
 
 from .._version import __version__
 from .._io import atomic_write
+from .._validate import check_choice, check_int
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from ..data.trajectory import Trajectory
-from .diagnostics import constant_force_trap, diagnose
+from .diagnostics import FitRecord, constant_force_trap, diagnose
 from ..mechanics.legendre import legendre
 from ..symbolic.library import Library
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
-from .search import _normalise
-from .selection import Significant, select
+from .selection import select
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
     row_gradients, sample_weights
@@ -28,6 +28,13 @@ __all__ = ["LagrangianSINDy"]
 _FORMS = ("auto", "derivative", "integral")
 _SMOOTHING = ("auto", "none")
 _HOLDS = ("auto", "zoh", "smooth")
+# Errors in variables (``_refine``): the sample weights depend on the coefficients they weight, so
+# weights and coefficients are updated in turn, a fixed number of passes (no tolerance in the units
+# of the data).  The support may be re-selected on the weighted balance only in the first
+# _RESELECT_PASSES passes, so the last pass always re-weights and corrects the coefficients on the
+# support they will be reported on.
+_REFINE_PASSES = 3
+_RESELECT_PASSES = 2
 
 
 def _check_trajectories(trajectories, coords, what="trajectories") -> list:
@@ -115,25 +122,18 @@ class LagrangianSINDy:
         prior = [self.prior] if isinstance(self.prior, str) else list(self.prior)
         forced = [self.library.index(t, what="prior term") for t in prior]
         for name, k in (("n_terms", self.n_terms), ("max_terms", self.max_terms)):
+            k = check_int(name, k, allow_none=True)
             if k is None:
                 continue
-            if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-                raise TypeError(f"{name} must be an integer or None, got {type(k).__name__}")
             if not 1 <= k <= len(self.library):
                 raise ValueError(f"{name} = {k} must be between 1 and the library size "
                                  f"{len(self.library)}")
             if len(set(forced)) > k:
                 raise ValueError(f"{len(set(forced))} prior terms do not fit in {name} = {k}")
-        if self.form not in _FORMS:
-            raise ValueError(f"form must be one of {_FORMS}, got {self.form!r}")
-        if self.hold not in _HOLDS:
-            raise ValueError(f"hold must be one of {_HOLDS}, got {self.hold!r}")
-        if self.smoothing not in _SMOOTHING:
-            raise ValueError(f"smoothing must be one of {_SMOOTHING}, got {self.smoothing!r}")
-        if self.window is not None and (isinstance(self.window, bool)
-                                        or not isinstance(self.window, (int, np.integer))
-                                        or self.window < 1):
-            raise ValueError(f"window must be None or a positive integer, got {self.window!r}")
+        check_choice("form", self.form, _FORMS)
+        check_choice("hold", self.hold, _HOLDS)
+        check_choice("smoothing", self.smoothing, _SMOOTHING)
+        check_int("window", self.window, low=1, allow_none=True)
         return sorted(set(forced))
 
     def _form(self, trajectories) -> str:
@@ -210,34 +210,34 @@ class LagrangianSINDy:
         forced = self._validate()
         lib = self.library
         coords = lib.coords.names
+        # 1. inputs: trajectories in the library's coordinate order
         trajectories = _check_trajectories(trajectories, coords)
         scale_list = (None if scale_trajectories is None else
                       _check_trajectories(scale_trajectories, coords, "scale_trajectories"))
-        states, state_var, self.smoothing_ = self._prepare(trajectories)
+        # 2. states: smoothed (integral form) with their noise variance
+        states, state_var, smoothing = self._prepare(trajectories)
+        # 3. energy balance (and the passive scheme's scale record)
         bal = self._balance(states, passive=passive)
-        scale_system = None
-        if bal.passive:
-            if scale_list is None:
-                raise ValueError("the training data are passive (no power fed in), which fixes the "
-                                 "energy only up to a factor: pass scale_trajectories, a short "
-                                 "actuated record (paper eq. 8)")
-            scale_states = self._prepare(scale_list)[0]
-            scale = self._balance(scale_states, passive=False)
-            if not np.any(scale.b):
-                raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
-            scale_system = (scale.A, scale.b)
-        self.trap_ = constant_force_trap(lib, trajectories, forced) if not bal.passive else None
-        excluded = [] if self.trap_ is None else self.trap_.excluded
-        admissible = self._admissibility(bal, forced, scale_system, excluded)
-        noise = (noise_model(bal, state_var, self.smoothing_)
+        scale_system = self._scale_system(scale_list) if bal.passive else None
+        # 4. the rules a candidate must pass
+        trap = constant_force_trap(lib, trajectories, forced) if not bal.passive else None
+        excluded = [] if trap is None else trap.excluded
+        admissible = Admissibility.for_balance(lib, bal, forced, scale_system, excluded)
+        # 5. support and k
+        noise = (noise_model(bal, state_var, smoothing)
                  if state_var is not None and bal.centred else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
                      scale_system=scale_system, max_terms=self.max_terms, noise=noise,
                      progress=progress)
         coef = sel.coef
+        # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
         if state_var is not None and bal.centred:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
                                                       scale_system, excluded, row_gradients(bal))
+        # 7. the model and its report
+        record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef,
+                           smoothing, trap)
+        self.smoothing_, self.trap_ = smoothing, trap
         self.selection_ = sel
         self.search_ = sel.search
         self.n_terms_ = sel.k
@@ -246,27 +246,31 @@ class LagrangianSINDy:
         self.actuated_ = [c for c in coords if any(c in tr.actuated for tr in
                                                    trajectories + (scale_list or []))]
         self._set_coefficients(coef, X=bal.X)
-        self.diagnostics_ = diagnose(self, bal, trajectories, scale_system, admissible)
+        self.diagnostics_ = diagnose(record)
         self.diagnostics_.hold = hold
         return self
 
-    def _admissibility(self, bal, forced, scale_system, excluded):
-        _, norms = _normalise(bal.A)
-        if bal.passive:       # judge term shares on the actuated record, where they are non-zero
-            norms = _normalise(scale_system[0])[1]
-        return Significant(Admissibility(self.library, bal.X, forced, norms), bal, scale_system,
-                           excluded)
+    def _scale_system(self, scale_list):
+        """Passive scheme: the actuated record (A_s, b_s) that fixes the energy's scale (eq. 8)."""
+        if scale_list is None:
+            raise ValueError("the training data are passive (no power fed in), which fixes the "
+                             "energy only up to a factor: pass scale_trajectories, a short "
+                             "actuated record (paper eq. 8)")
+        scale = self._balance(self._prepare(scale_list)[0], passive=False)
+        if not np.any(scale.b):
+            raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
+        return scale.A, scale.b
 
     def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
         weighted balance (same k), and correct the coefficients for regressor noise."""
         coef, support, sel_w, changed = sel.coef, sel.support, sel, True
         sizes = np.cumsum([tr.n_samples for tr in states])[:-1]
-        for it in range(3):
+        for it in range(_REFINE_PASSES):
             w = sample_weights(energy_variance(grads, coef, state_var))
             bal_w = self._balance(states, passive=passive, weights=np.split(w, sizes))
-            if changed and it < 2:      # re-select on the weighted balance (same k)
-                adm = self._admissibility(bal_w, forced, scale_system, excluded)
+            if changed and it < _RESELECT_PASSES:      # re-select on the weighted balance (same k)
+                adm = Admissibility.for_balance(self.library, bal_w, forced, scale_system, excluded)
                 try:
                     sel_w = select(bal_w, forced, n_terms=sel.k, scale_system=scale_system,
                                    admissible=adm)

@@ -23,9 +23,12 @@ from typing import Callable
 
 import numpy as np
 
+from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
+from .fitting import coef_on_support, normal_equations, normalise_columns
 from .subset_tree import tree_scores
 
-__all__ = ["combinations", "SearchResult", "best_subset", "score_all", "score_supports", "DEGENERACY_TOL"]
+__all__ = ["combinations", "Candidate", "SearchResult", "Visit", "best_subset", "visit", "score_all",
+           "score_supports", "DEGENERACY_TOL"]
 
 # Pivots of a unit-diagonal Gram matrix are 1 − R² of each column against the previous ones.
 # Exact identities give ~1e-15 (round-off); genuinely distinct smooth terms on 100+ samples give
@@ -77,14 +80,6 @@ def _forward(L: np.ndarray, c: np.ndarray) -> np.ndarray:
     for j in range(c.shape[1]):
         y[:, j] = (c[:, j] - np.einsum("bi,bi->b", L[:, j, :j], y[:, :j])) / L[:, j, j]
     return y
-
-
-def _normalise(A: np.ndarray):
-    s = np.linalg.norm(A, axis=0)
-    ok = s > 0
-    An = np.zeros_like(A)
-    An[:, ok] = A[:, ok] / s[ok]
-    return An, s
 
 
 @dataclass
@@ -157,10 +152,10 @@ def score_supports(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray,
     if b is None and D is None:
         raise ValueError("the passive score needs the gradient matrix D to tell conserved "
                          "quantities from identities")
-    An, _ = _normalise(A)
+    An, _ = normalise_columns(A)
     G = An.T @ An
     if D is not None:
-        Dn, _ = _normalise(D)
+        Dn, _ = normalise_columns(D)
         GD = Dn.T @ Dn
     c = None if b is None else An.T @ b
     bb = None if b is None else float(b @ b)
@@ -226,71 +221,80 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     if len(forced) > k:
         raise ValueError(f"{len(forced)} prior terms do not fit in n_terms = {k}")
     supports, scores, degenerate = score_all(A, b, k, forced, D, progress)
+    v = visit(A, b, supports, scores, degenerate, admissible=admissible, scale_system=scale_system,
+              max_visits=max_visits, n_report=n_report)
+    if v.winner is None:
+        raise ValueError(f"no physically admissible {k}-term model among the {v.n_examined} best "
+                         "supports; try another n_terms, prior or library (reasons: "
+                         + "; ".join(sorted({c.reason for c in v.candidates if c.reason})) + ")")
+    return v.result(supports, scores, degenerate)
+
+
+@dataclass
+class Visit:
+    """Outcome of :func:`visit`: the winner (None if nothing passed) and what was seen."""
+
+    winner: Candidate | None
+    null_dim: int
+    candidates: list
+    n_examined: int
+    n_reducible: int
+
+    def result(self, supports, scores, degenerate) -> SearchResult:
+        w = self.winner
+        return SearchResult(w.support, w.coef, w.score, self.candidates, len(supports),
+                            int(degenerate.sum()), self.null_dim, scores, supports, self.n_reducible)
+
+
+def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.ndarray,
+          degenerate: np.ndarray, *, admissible: Callable | None = None,
+          scale_system: tuple | None = None, max_visits: int = 20_000, n_report: int = 10) -> Visit:
+    """Visit the scored supports best-first; the first one that passes every rule wins.
+
+    Shared by the exhaustive search and the beam of :mod:`lsindy_cas.identify.selection`.  Per
+    block of candidates the reducible ones are rejected batched
+    (:func:`lsindy_cas.identify.admissibility.reducible`); each other one is fitted
+    (:func:`lsindy_cas.identify.fitting.coef_on_support`) and judged by ``admissible``.  At most
+    ``max_visits`` supports are fitted; ``n_report`` reducible ones and ``n_report`` runners-up
+    are kept for the diagnostics.
+    """
     keys = np.where(degenerate, np.inf, scores)
     n_ok = int((~degenerate).sum())
     order = _best_first(keys, min(n_ok, 8192))
-    G, c = _normal_equations(A, b)
-    candidates, winner, n_visited, n_reducible, pos = [], None, 0, 0, 0
+    G, c = normal_equations(A, b)
+    candidates, winner, null_dim, n_visited, n_reducible, pos = [], None, 0, 0, 0, 0
     while pos < n_ok and n_visited < max_visits and winner is None:
         if pos + 256 > len(order) and len(order) < n_ok:
             order = _best_first(keys, min(n_ok, 4 * len(order)))
         block = order[pos:pos + 256]
-        reducible = _reducible(G, c, supports[block])
-        for idx, red in zip(block, reducible):
+        red = reducible(G, c, supports[block])
+        for idx, r in zip(block, red):
             pos += 1
             S = tuple(supports[idx].tolist())
-            if red:   # cheap batched rejection: a k-term fit whose own coefficients say "fewer terms"
+            if r:   # cheap batched rejection: a k-term fit whose own coefficients say "fewer terms"
                 n_reducible += 1
                 if n_reducible <= n_report:
                     candidates.append(Candidate(S, float(scores[idx]), False, REDUCIBLE_REASON))
                 continue
             n_visited += 1
-            coef, null_dim = _coefficients(A, b, S, scale_system)
+            coef, nd = coef_on_support(A, b, S, scale_system)
             cand = Candidate(S, float(scores[idx]), coef=coef)
             if coef is None:
-                cand.admissible, cand.reason = False, "scale trial cannot fix the scale"
+                cand.admissible, cand.reason = False, NO_SCALE_REASON
             elif admissible is None:
                 cand.admissible = True
             else:
                 cand.admissible, cand.reason = admissible(S, coef)
             candidates.append(cand)
             if cand.admissible:
-                winner = (cand, null_dim)
+                winner, null_dim = cand, nd
                 break
     # a few runners-up for the diagnostics
     if pos + n_report > len(order):
         order = _best_first(keys, min(n_ok, pos + n_report))
     for idx in order[pos:pos + n_report]:
         candidates.append(Candidate(tuple(int(j) for j in supports[idx]), float(scores[idx])))
-    if winner is None:
-        raise ValueError(f"no physically admissible {k}-term model among the {pos} best supports; "
-                         "try another n_terms, prior or library (reasons: "
-                         + "; ".join(sorted({c.reason for c in candidates if c.reason})) + ")")
-    cand, null_dim = winner
-    return SearchResult(cand.support, cand.coef, cand.score, candidates, len(supports),
-                        int(degenerate.sum()), null_dim, scores, supports, n_reducible)
-
-
-REDUCIBLE_REASON = "a coefficient came out zero: the support is really a smaller one"
-# A support is reducible when its smallest normalised coefficient is below this fraction of the
-# largest: exact traps put ~1e-12 there, genuine terms ≥ 1e-3 even when small.
-REDUCIBLE_TOL = 1e-6
-
-
-def _normal_equations(A, b):
-    An, _ = _normalise(A)
-    return An.T @ An, (None if b is None else An.T @ b)
-
-
-def _reducible(G, c, S) -> np.ndarray:
-    """Batched: does the fitted (or null) vector of each support have a vanishing entry?"""
-    GS = _gather(G, S)
-    if c is None:
-        v = np.linalg.eigh(GS)[1][:, :, 0]
-    else:
-        v = np.linalg.solve(GS, c[S][:, :, None])[:, :, 0]
-    a = np.abs(v)
-    return a.min(axis=1) <= REDUCIBLE_TOL * a.max(axis=1)
+    return Visit(winner, null_dim, candidates, pos, n_reducible)
 
 
 def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndarray | None = None,
@@ -308,7 +312,7 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
     forced = sorted(set(int(j) for j in forced))
     free = np.array([j for j in range(p) if j not in set(forced)], dtype=np.int64)
     if b is not None:
-        An, _ = _normalise(A)
+        An, _ = normalise_columns(A)
         supports, scores, pivots = tree_scores(An.T @ An, An.T @ b, float(b @ b), forced, free, k,
                                                progress)
         return supports, scores, pivots < DEGENERACY_TOL
@@ -328,32 +332,6 @@ def _best_first(keys: np.ndarray, n: int) -> np.ndarray:
         top = top[np.lexsort((top, keys[top]))]
         return top[:n]
     return np.argsort(keys, kind="stable")[:n]
-
-
-def _coefficients(A, b, S, scale_system):
-    """Coefficients (p,) of support S in data units, and the null-space dimension (passive)."""
-    p = A.shape[1]
-    An, s = _normalise(A[:, S])
-    xi = np.zeros(p)
-    if b is not None:
-        sol, *_ = np.linalg.lstsq(An, b, rcond=None)
-        xi[list(S)] = sol / s
-        return xi, 0
-    # passive: near null space of the normalised columns
-    _, sv, Vt = np.linalg.svd(An, full_matrices=False)
-    tol = max(sv[-1] * 1e3, sv[0] * 1e-7)
-    N = Vt[sv <= tol].T / s[:, None]                         # (k, m) in data units
-    if scale_system is None:
-        v = N[:, 0]
-        xi[list(S)] = v / np.max(np.abs(v))
-        return xi, N.shape[1]
-    As, bs = scale_system
-    M = As[:, S] @ N
-    if not np.any(bs) or np.linalg.norm(M) == 0:
-        return None, N.shape[1]
-    c, *_ = np.linalg.lstsq(M, bs, rcond=None)
-    xi[list(S)] = N @ c
-    return xi, N.shape[1]
 
 
 def n_supports(p: int, k: int, n_forced: int = 0) -> int:

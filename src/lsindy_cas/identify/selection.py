@@ -1,11 +1,11 @@
 """Scale-free model selection: the support *and* the number of terms k, with physical admissibility.
 
 For each k the best admissible support comes from :func:`lsindy_cas.identify.search.best_subset` (all
-k-supports scored by a scale-free criterion).  Admissible (:class:`Significant`) means: physically
-an energy (prior terms present, kinetic part positive definite, no term linear in the velocities),
-no term that the data leave undetermined (see :mod:`lsindy_cas.identify.diagnostics`, constant input), and
-every coefficient significantly non-zero in a block jackknife — a dimensionless t-test that keeps
-noise-fitting terms out without any threshold in the units of the data.  k itself is chosen on held-out data: whole
+k-supports scored by a scale-free criterion) or, for large libraries, from a beam of one-term
+extensions; both visit their candidates through :func:`lsindy_cas.identify.search.visit`, so a
+support gets the same coefficients on either path.  Admissible means passing every rule of
+:mod:`lsindy_cas.identify.admissibility` (an energy, no undetermined term, every coefficient
+significantly non-zero in a block jackknife).  k itself is chosen on held-out data: whole
 trajectories when there are four or more, otherwise contiguous stretches of each run (five folds).
 The held-out error of a support is the fraction of the held-out work (driven) — or of the
 held-out changes of its terms (passive) — that the fitted energy does not explain, so it has no
@@ -43,11 +43,11 @@ from typing import Callable
 import numpy as np
 
 from .balance import EnergyBalance
-from .search import Candidate, SearchResult, best_subset, score_supports
-from .uncertainty import T_CRIT, Jackknife, recentre
+from .fitting import null_vector
+from .search import SearchResult, best_subset, score_supports, visit
+from .uncertainty import recentre
 
-__all__ = ["Step", "Selection", "Significant", "select", "cv_error", "fold_ids", "coef_on_support",
-           "IMPROVEMENT"]
+__all__ = ["Step", "Selection", "select", "cv_error", "fold_ids", "IMPROVEMENT"]
 
 IMPROVEMENT = 2.0
 # χ of a correct model is ≈ 1 − k/m_eff in theory; measured 0.2–1.7 for the true energies of the
@@ -62,42 +62,6 @@ MAX_EXTRA = 8              # automatic k: at most this many terms beyond the pri
 # rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
 _CV_FLOOR = 1e-18
 _T95 = {1: 6.31, 2: 2.92, 3: 2.35, 4: 2.13, 5: 2.02}   # one-sided 5 % t quantiles, by dof
-
-
-class Significant:
-    """Admissibility plus significance: ``(support, coef) -> (ok, reason)``.
-
-    A candidate passes when it avoids the ``excluded`` terms and terms linear in the velocities
-    (which cannot appear in an energy, see :mod:`lsindy_cas.mechanics.legendre`), the physical test passes
-    (prior terms present, kinetic part positive definite), and every coefficient has |t| ≥ T_CRIT
-    in a delete-a-block jackknife (:class:`lsindy_cas.identify.uncertainty.Jackknife`).
-    """
-
-    def __init__(self, physical, bal: EnergyBalance, scale_system=None, excluded=()):
-        self.physical = physical
-        self.bal = bal
-        self.scale_system = scale_system
-        self.excluded = set(int(j) for j in excluded)
-        self._jack = None
-
-    def __call__(self, support, coef):
-        if self.excluded & set(support):
-            return False, ("uses a coordinate whose coefficient a constant input leaves "
-                           "undetermined (E and E − u·x fit equally)")
-        lib = self.physical.library
-        if any(lib.velocity_degree(j) == 1 for j in support):
-            return False, ("has a term linear in the velocities, which no energy has (it cancels "
-                           "in H = p·q̇ − L): a momentum-like conserved quantity, not the energy")
-        ok, why = self.physical(support, coef)
-        if not ok:
-            return ok, why
-        S = list(support)
-        if self._jack is None:
-            self._jack = Jackknife(self.bal)
-        t = self._jack.t(S, coef[S], scale_system=self.scale_system)
-        if np.any(t < T_CRIT):
-            return False, f"a term is not significantly non-zero (jackknife |t| < {T_CRIT})"
-        return True, "admissible"
 
 
 @dataclass
@@ -173,9 +137,7 @@ def cv_error(bal: EnergyBalance, S, folds=None):
             Atr, btr = recentre(bal, tr, Atr, btr)
             Ate, bte = recentre(bal, te, Ate, bte)
         if bal.b is None:
-            s = np.linalg.norm(Atr, axis=0)
-            s[s == 0] = 1.0
-            eta = np.linalg.svd(Atr / s, full_matrices=False)[2][-1] / s
+            eta = null_vector(Atr)
             num.append(float(np.sum((Ate @ eta) ** 2)))
             den.append(float(np.sum((Ate * eta) ** 2)))
         else:
@@ -236,7 +198,7 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
         raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms are too many to "
                          "score without a smaller model to extend")
     if beam:
-        res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system, f_loc)
+        res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
     else:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress)
@@ -251,7 +213,7 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     return res, beam
 
 
-def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, forced, n_report=10,
+def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_report=10,
           max_visits=MAX_VISITS):
     """Score the one-term extensions of the best BEAM supports of size k − 1 (local indices)."""
     order = np.argsort(prev.scores, kind="stable")[:BEAM]
@@ -263,73 +225,12 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, forced
     S = np.sort(np.hstack([ext[ok], add[ok, None]]), axis=1)
     S = np.unique(S, axis=0)
     scores, degenerate = score_supports(A, b, S, D if b is None else None)
-    degenerate |= _reducible(A, b, S)
-    cand_order = np.argsort(np.where(degenerate, np.inf, scores), kind="stable")
-    candidates, winner = [], None
-    for idx in cand_order[:min(max_visits, int((~degenerate).sum()))]:
-        sup = tuple(int(j) for j in S[idx])
-        coef, null_dim = coef_on_support(A, b, sup, scale_system)
-        ok_, why = (False, "scale trial cannot fix the scale") if coef is None else (
-            (True, "admissible") if admissible is None else admissible(sup, coef))
-        candidates.append(Candidate(sup, float(scores[idx]), ok_, why, coef))
-        if ok_:
-            winner = (candidates[-1], null_dim)
-            break
-    for idx in cand_order[len(candidates):len(candidates) + n_report]:
-        candidates.append(Candidate(tuple(int(j) for j in S[idx]), float(scores[idx])))
-    if winner is None:
+    v = visit(A, b, S, scores, degenerate, admissible=admissible, scale_system=scale_system,
+              max_visits=max_visits, n_report=n_report)
+    if v.winner is None:
         raise ValueError(f"no physically admissible {k}-term model among the one-term extensions "
                          "of the best smaller models")
-    cand, null_dim = winner
-    return SearchResult(cand.support, cand.coef, cand.score, candidates, len(S),
-                        int(degenerate.sum()), null_dim, scores, S, 0)
-
-
-def _reducible(A, b, S, tol=1e-6) -> np.ndarray:
-    """Batched: supports whose fitted (or null) vector has a vanishing entry (smaller in disguise)."""
-    s = np.linalg.norm(A, axis=0)
-    s[s == 0] = 1.0
-    An = A / s
-    G = An.T @ An
-    out = np.zeros(len(S), dtype=bool)
-    for lo in range(0, len(S), 100_000):
-        Sc = S[lo:lo + 100_000]
-        g = G[Sc[:, :, None], Sc[:, None, :]]
-        with np.errstate(all="ignore"):
-            if b is None:
-                v = np.linalg.eigh(g)[1][:, :, 0]
-            else:
-                c = (An.T @ b)[S[lo:lo + 100_000]]
-                try:
-                    v = np.linalg.solve(g, c[:, :, None])[:, :, 0]
-                except np.linalg.LinAlgError:
-                    continue
-        a = np.abs(v)
-        out[lo:lo + 100_000] = ~(a.min(axis=1) > tol * a.max(axis=1))
-    return out
-
-
-def coef_on_support(A, b, S, scale_system):
-    """Coefficients (p,) of support S in data units (least squares, or scaled null vector)."""
-    S = list(S)
-    xi = np.zeros(A.shape[1])
-    s = np.linalg.norm(A[:, S], axis=0)
-    s[s == 0] = 1.0
-    if b is not None:
-        xi[S] = np.linalg.lstsq(A[:, S] / s, b, rcond=None)[0] / s
-        return xi, 0
-    sv, Vt = np.linalg.svd(A[:, S] / s, full_matrices=False)[1:]
-    v = Vt[-1] / s
-    null_dim = int(np.sum(sv <= max(sv[-1] * 1e3, sv[0] * 1e-7)))
-    if scale_system is None:
-        xi[S] = v / np.max(np.abs(v))
-        return xi, null_dim
-    As, bs = scale_system
-    a = As[:, S] @ v
-    if not a @ a > 0:
-        return None, null_dim
-    xi[S] = v * (a @ bs) / (a @ a)
-    return xi, null_dim
+    return v.result(S, scores, degenerate)
 
 
 def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible: Callable | None = None,

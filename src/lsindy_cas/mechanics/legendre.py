@@ -19,7 +19,15 @@ import numpy as np
 
 from ..symbolic.library import Library
 
-__all__ = ["legendre"]
+__all__ = ["legendre", "velocity_linear"]
+
+
+def velocity_linear(library: Library, indices) -> list:
+    """The terms among ``indices`` that are linear in the velocities (degree 1, e.g. A(q)·q̇).
+
+    No energy has such a term: it cancels in H = p·q̇ − L, so eq. 7 cannot map it back.
+    """
+    return [int(j) for j in indices if library.velocity_degree(int(j)) == 1]
 
 
 def legendre(library: Library, coef_h: np.ndarray, X: np.ndarray | None = None,
@@ -42,7 +50,8 @@ def legendre(library: Library, coef_h: np.ndarray, X: np.ndarray | None = None,
     active = np.flatnonzero(coef_h)
     degrees = {j: library.velocity_degree(j) for j in active}
     scale = np.max(np.abs(coef_h)) if active.size else 1.0
-    linear = [library.names[j] for j in active if degrees[j] == 1 and abs(coef_h[j]) > rtol * scale]
+    linear = [library.names[j] for j in velocity_linear(library, active)
+              if abs(coef_h[j]) > rtol * scale]
     if linear:
         raise ValueError("the energy contains terms linear in the velocities "
                          f"({', '.join(linear)}); no Lagrangian has such an energy (its linear "

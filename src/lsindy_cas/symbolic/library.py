@@ -14,6 +14,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from .._validate import check_int
 from .coords import Coordinates
 
 __all__ = ["Library"]
@@ -73,10 +74,7 @@ class Library:
         degree : int
             Highest total degree of a product (≥ 1).
         """
-        if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
-            raise TypeError(f"degree must be an integer, got {type(degree).__name__}")
-        if degree < 1:
-            raise ValueError(f"degree must be at least 1, got {degree}")
+        degree = check_int("degree", degree, low=1)
         c = coords if isinstance(coords, Coordinates) else Coordinates(coords)
         if isinstance(features, str):
             features = _split_top_level(features)
