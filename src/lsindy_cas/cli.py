@@ -96,7 +96,8 @@ def _reproduce(args) -> int:
     ok = all(c.exact_support and c.lagrangian_exact_support for c in cells)
     if args.no_figures:
         return 0 if ok else 1
-    from .paper.figures import claims, make_figures
+    from .paper.comparison import claims
+    from .paper.figures import make_figures
     try:
         paths = make_figures(Path(args.out), cells=cells, progress=say,
                              echo=lambda text: print("\n" + text))
@@ -244,15 +245,11 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", required=True, metavar="OUT.csv", help="output trajectory (.csv or .npz)")
     sim.set_defaults(func=_simulate)
 
-    try:
-        from .paper.swingup import add_swingup_arguments, run_from_args
-    except ImportError:  # the MPC part is optional while it is being built
-        pass
-    else:
-        sw = sub.add_parser("swingup", help="identify the cart-pendulum and swing it up by MPC",
-                            epilog=SWINGUP_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
-        add_swingup_arguments(sw)
-        sw.set_defaults(func=run_from_args)
+    from .paper.swingup_cli import add_swingup_arguments, run_from_args
+    sw = sub.add_parser("swingup", help="identify the cart-pendulum and swing it up by MPC",
+                        epilog=SWINGUP_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_swingup_arguments(sw)
+    sw.set_defaults(func=run_from_args)
     return p
 
 
