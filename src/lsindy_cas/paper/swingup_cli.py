@@ -8,8 +8,9 @@ parser stays fast.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
+
+from .._validate import check_choice, check_int, check_real
 
 __all__ = ["add_swingup_arguments", "run_from_args"]
 
@@ -59,21 +60,14 @@ def _controller_options(args):
     opts = {}
     solver, rounding = getattr(args, "solver", None), getattr(args, "rounding", None)
     if solver:
-        if solver not in SOLVERS:
-            raise ValueError(f"--solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-        opts["solver"] = solver
+        opts["solver"] = check_choice("--solver", solver, SOLVERS)
     if rounding:
-        allowed = ("lookahead", *ROUNDINGS)
-        if rounding not in allowed:
-            raise ValueError(f"--rounding must be one of {', '.join(allowed)}, got {rounding!r}")
-        opts["rounding"] = rounding
+        opts["rounding"] = check_choice("--rounding", rounding, ("lookahead", *ROUNDINGS))
     if getattr(args, "balance", None):
         opts["balance"] = args.balance == "on"
     tol = getattr(args, "inexact_tol", None)
     if tol is not None:
-        if not (0 < tol and math.isfinite(tol)):
-            raise ValueError(f"--inexact-tol must be positive and finite, got {tol}")
-        opts["inexact_tol"] = tol
+        opts["inexact_tol"] = check_real("--inexact-tol", tol, positive=True)
     return opts
 
 
@@ -102,10 +96,8 @@ def run_from_args(args):
     """
     from . import swingup   # looked up at call time: the tests replace swingup.run_swingup
 
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
-    if args.seed < 0:
-        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    check_int("--episodes", args.episodes, low=1)
+    check_int("--seed", args.seed, low=0)
     scenarios = _scenarios(args.scenarios)
     opts = _controller_options(args)
     _check_paths(args)
