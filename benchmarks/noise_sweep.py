@@ -55,7 +55,8 @@ TOL = 0.05
 # Rich protocol: input amplitude per system (N or N·m) — an experiment design choice, not a
 # method parameter: enough to move each system well without flinging it around.
 AMPLITUDE = {"spherical": 0.5, "double": 5.0, "cart": 2.0}
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parent / "results"              # JSON and Markdown
+FIGURES = Path(__file__).resolve().parents[1] / "docs" / "results"  # the images the README shows
 
 
 def rich_runs(name: str, system, rng: np.random.Generator, n_runs: int = 10, t_end: float = 5.0):
@@ -212,6 +213,8 @@ def main(argv=None) -> int:
     p.add_argument("--methods", default=",".join(METHODS))
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--out", default=str(RESULTS), help="output directory")
+    p.add_argument("--figures", default=str(FIGURES),
+                   help="directory of the PNG (default docs/results, where the README's images are)")
     p.add_argument("--name", default="noise_sweep", help="output file stem")
     args = p.parse_args(argv)
     levels = [float(s) for s in args.levels.split(",")]
@@ -243,9 +246,11 @@ def main(argv=None) -> int:
     (out / f"{args.name}.json").write_text(json.dumps(
         {"levels": levels, "seeds": args.seeds, "tolerance": TOL, "seconds": time.perf_counter() - t0,
          "rows": rows}, indent=1, default=float))
-    plot(rows, levels, out / f"{args.name}.png")
-    print(f"\nwritten to {out / args.name}.{{md,json,png}} in {time.perf_counter() - t0:.0f} s",
-          file=sys.stderr)
+    figures = Path(args.figures)
+    figures.mkdir(parents=True, exist_ok=True)
+    plot(rows, levels, figures / f"{args.name}.png")
+    print(f"\nwritten to {out / args.name}.{{md,json}} and {figures / args.name}.png in "
+          f"{time.perf_counter() - t0:.0f} s", file=sys.stderr)
     return 0
 
 

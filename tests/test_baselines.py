@@ -115,7 +115,7 @@ def test_rollout_stops_where_a_model_diverges():
 
 
 def test_claims_reads_the_numbers():
-    from lsindy_cas.paper.figures import claims
+    from lsindy_cas.paper.comparison import claims
     good = {"fig3": [{"system": "cart", "library": 55, "sindy": 100, "kronic": 54, "ours": 4}],
             "fig4": [{"system": "cart", "rms_q_extrap_ours": 1e-12, "rms_q_extrap_sindy": None}]}
     assert claims(good) == []
@@ -127,7 +127,8 @@ def test_claims_reads_the_numbers():
 
 @needs_pysindy
 def test_figures_for_the_cart_pendulum(tmp_path):
-    from lsindy_cas.paper.figures import claims, make_figures
+    from lsindy_cas.paper.comparison import claims
+    from lsindy_cas.paper.figures import make_figures
     printed = []
     paths = make_figures(tmp_path, systems=["cart"], echo=printed.append)
     names = [p.name for p in paths]
@@ -151,7 +152,8 @@ def test_make_figures_rejects_unknown_systems(tmp_path):
 @pytest.mark.slow
 @needs_pysindy
 def test_paper_claims_on_all_three_systems(tmp_path):
-    from lsindy_cas.paper.figures import claims, make_figures
+    from lsindy_cas.paper.comparison import claims
+    from lsindy_cas.paper.figures import make_figures
     paths = make_figures(tmp_path)
     numbers = json.loads(paths[-1].read_text())
     assert claims(numbers) == []

@@ -126,7 +126,7 @@ def test_all_passive_error_names_the_cli_flag(tmp_path):
 def test_version_and_descriptions():
     r = run_cli("--version")
     assert r.returncode == 0 and __version__ in r.stdout
-    for cmd in ("identify", "simulate", "reproduce", "library"):
+    for cmd in ("identify", "simulate", "reproduce", "library", "export", "swingup"):
         text = run_cli(cmd, "--help").stdout
         usage_end = text.index("\n\n")
         # a description paragraph between the usage and the argument list

@@ -264,22 +264,7 @@ def test_twenty_random_starts_all_succeed(ctrl, plant):
     assert np.median([ep.time_to_upright for ep in eps]) <= 2.6
 
 
-# --- the script ----------------------------------------------------------------------------------
-
-def test_swingup_script_runs_small_and_writes_json_and_figures(tmp_path, load_script):
-    code = load_script("mpc/swingup.py").main(["--episodes", "1", "--scenarios", "nominal",
-                           "--json", str(tmp_path / "m.json"), "--out", str(tmp_path)])
-    assert code == 0
-    assert (tmp_path / "m.json").exists()
-    assert (tmp_path / "swingup_phase.png").exists() and (tmp_path / "swingup_time.png").exists()
-
-
-def test_swingup_script_bad_input_exits_2(capsys, load_script):
-    assert load_script("mpc/swingup.py").main(["--episodes", "0"]) == 2
-    assert "episodes" in capsys.readouterr().err
-    assert load_script("mpc/swingup.py").main(["--episodes", "1", "--inexact-tol", "-1"]) == 2
-    assert "inexact-tol" in capsys.readouterr().err
-
+# --- the swingup options (lsindy swingup: tests/test_swingup_cli.py) ----------------------------
 
 def test_swingup_controller_options_reach_the_controller(monkeypatch):
     import lsindy_cas.paper.swingup as sw

@@ -1,16 +1,21 @@
 """Swing-up of the cart-pendulum with an identified model (paper Sec. III-C, Fig. 5).
 
 Pipeline: simulate the paper's actuated training run, identify the cart-pendulum with
-:class:`~lsindy_cas.LagrangianSINDy`, build a :class:`~lsindy_cas.mpc.SwingUpMPC` from the
-*identified* model, and run closed-loop episodes on the *true* plant (integrated accurately by
-CVODES, force held constant over each control period).  Scenarios: ``nominal`` (plant = the
-true system), ``mismatch`` (each of the plant's cart mass, pole mass and pole length off by ±10 %
-against the true system the model was identified from, sign drawn per episode) and ``noise``
-(the controller measures the state with additive N(0, sigma^2) noise, sigma = 0.01).
+:class:`~lsindy_cas.LagrangianSINDy` (:func:`identify_cart_pendulum`), build a
+:class:`~lsindy_cas.mpc.SwingUpMPC` from the *identified* model, and run closed-loop episodes
+(:func:`run_episode`) on the *true* plant (:class:`~lsindy_cas.paper.plant.Plant`: CVODES, force
+held constant over each control period).  Scenarios: ``nominal`` (plant = the true system),
+``mismatch`` (each of the plant's cart mass, pole mass and pole length off by ±10 % against the
+true system the model was identified from, sign drawn per episode) and ``noise`` (the controller
+measures the state with additive N(0, sigma^2) noise, sigma = 0.01).
 
-Success (issue 3): |wrap(theta - pi)| < 0.1 rad and |theta_dot| < 0.5 rad/s over the last 3 s of
-a 10 s episode, checked every 10 ms, and |x| <= 2 m throughout.  The time to upright is the
-first time from which these angle and rate bounds hold until the end of the episode.
+Success (:func:`evaluate`): |wrap(theta - pi)| < 0.1 rad and |theta_dot| < 0.5 rad/s over the
+last 3 s of a 10 s episode, checked every 10 ms, and |x| <= 2 m throughout.  The time to upright
+is the first time from which these angle and rate bounds hold until the end of the episode.
+
+:func:`run_swingup` runs the whole experiment and reports it; the ``lsindy swingup`` options are
+in :mod:`~lsindy_cas.paper.swingup_cli` (``Plant``, ``mismatched_cart_pendulum``,
+``scenario_plant``, ``add_swingup_arguments`` and ``run_from_args`` stay importable from here).
 """
 
 from __future__ import annotations
@@ -21,51 +26,17 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
 from ..control.mpc import wrap_angle
+from .plant import Plant, mismatched_cart_pendulum, scenario_plant  # noqa: F401 (importable here)
+from .swingup_cli import add_swingup_arguments, run_from_args  # noqa: F401 (importable here)
 
-__all__ = ["Episode", "Plant", "add_swingup_arguments", "evaluate", "identify_cart_pendulum",
-           "mismatched_cart_pendulum", "random_starts", "run_episode", "run_from_args", "run_swingup", "scenario_plant",
-           "scenario_stats"]
+__all__ = ["Episode", "evaluate", "identify_cart_pendulum", "random_starts", "run_episode",
+           "run_swingup", "scenario_stats", "summary_table"]
 
 ANGLE_TOL, RATE_TOL, WINDOW, T_END = 0.1, 0.5, 3.0, 10.0
 SCENARIOS = ("nominal", "mismatch", "noise")
-
-
-class Plant:
-    """A mechanical system integrated under a zero-order-hold input, for closed-loop runs.
-
-    Parameters
-    ----------
-    system : MechanicalSystem
-        The true plant (``ode()``, ``coords``, ``actuated``).
-    dt : float
-        Control period (s): the input is held constant over each period.
-    n_out : int
-        States returned per period (at ``dt / n_out`` spacing) so that constraints are
-        checked between control instants too.
-    tol : float
-        CVODES absolute and relative tolerance.
-    """
-
-    def __init__(self, system, dt, n_out=5, tol=1e-10):
-        self.coords = list(system.coords)
-        self.dt, self.n_out = float(dt), int(n_out)
-        n = len(self.coords)
-        self.input_index = self.coords.index(system.actuated)
-        x, u = ca.SX.sym("x", 2 * n), ca.SX.sym("u", n)
-        grid = np.linspace(0.0, self.dt, self.n_out + 1)[1:]
-        self._integrator = ca.integrator("plant", "cvodes",
-                                         {"x": x, "p": u, "ode": system.ode()(x, u)}, 0.0, grid,
-                                         {"abstol": tol, "reltol": tol})
-        self._u = np.zeros(n)
-
-    def step(self, x, force):
-        """States over one period from ``x`` under ``force``: shape (n_out, 2n), last = end."""
-        self._u[self.input_index] = force
-        return np.asarray(self._integrator(x0=x, p=self._u)["xf"]).T
 
 
 def evaluate(t, X, *, upright=np.pi, cart=0, pole=1, track_limit=2.0, t_end=None):
@@ -190,7 +161,7 @@ def run_episode(ctrl, plant, x0, *, t_end=T_END, noise_std=0.0, rng=None):
 
 
 def random_starts(n, seed=0):
-    """Initial states ``[x, theta, x_dot, theta_dot]`` drawn as in issue 3.
+    """Random initial states ``[x, theta, x_dot, theta_dot]`` of the swing-up episodes.
 
     theta ~ U[-pi, pi), x ~ U[-0.5, 0.5], both velocities ~ U[-1, 1]; shape (n, 4).
     """
@@ -219,27 +190,6 @@ def identify_cart_pendulum(system=None):
                              degree=3)
     model = LagrangianSINDy(lib, n_terms=4, prior=["theta_dot**2", "cos(theta)"]).fit(trajs)
     return model, trajs
-
-
-def mismatched_cart_pendulum(factors):
-    """The true cart-pendulum with its cart mass, pole mass and pole length times ``factors``."""
-    from . import systems
-    p = systems.cart_pendulum().params
-    return systems.cart_pendulum(mc=p["mc"] * factors[0], mp=p["mp"] * factors[1],
-                                 L=p["L"] * factors[2])
-
-
-def scenario_plant(name, rng, dt):
-    """The true plant of one episode of scenario ``name`` and its parameter factors (or None).
-
-    ``mismatch`` draws the sign of a 10 % error in cart mass, pole mass and pole length from
-    ``rng`` (three draws per episode); the other scenarios use the true cart-pendulum.
-    """
-    from . import systems
-    if name == "mismatch":
-        f = 1.0 + 0.1 * rng.choice([-1.0, 1.0], size=3)
-        return Plant(mismatched_cart_pendulum(f), dt), f.tolist()
-    return Plant(systems.cart_pendulum(), dt), None
 
 
 def scenario_stats(episodes):
@@ -352,50 +302,3 @@ def summary_table(report):
                      f"{s['max_track_used']:.2f} | {s['n_failures']} | "
                      f"{s['solver']['solve_ms_median']:.2f} | {s['solver']['solve_ms_p99']:.2f} |")
     return "\n".join(lines)
-
-
-def add_swingup_arguments(parser):
-    """Add the ``lsindy swingup`` options to an ``argparse`` parser."""
-    parser.add_argument("--model", metavar="MODEL.json",
-                        help="saved model (lsindy identify --json); identified afresh if omitted")
-    parser.add_argument("--episodes", type=int, default=20, help="random starts (default 20)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--scenarios", default=",".join(SCENARIOS),
-                        help="comma-separated subset of nominal,mismatch,noise (default all)")
-    parser.add_argument("--solver", default=None,
-                        help="sqp (default), sqp-gn, fatrop or ipopt (warm-started steps)")
-    parser.add_argument("--rounding", default=None,
-                        help="how the applied force is chosen: lookahead (default), sur or nearest")
-    parser.add_argument("--balance", choices=("on", "off"), default=None,
-                        help="pulse balancer near the upright (default on)")
-    parser.add_argument("--inexact-tol", type=float, default=None, metavar="TOL",
-                        help="largest constraint violation of an iteration-capped solve that is "
-                             "still applied (default 1e-6)")
-    parser.add_argument("--json", metavar="OUT.json", help="write the metrics as JSON")
-    parser.add_argument("--out", metavar="DIR", help="write the Fig. 5 analogue (PNG) here")
-    return parser
-
-
-def run_from_args(args):
-    """Run :func:`run_swingup` from parsed arguments; returns the exit code (0 = all passed)."""
-    model = None
-    if args.model:
-        from ..identify.estimator import LagrangianSINDy
-
-        model = LagrangianSINDy.load(args.model)
-    opts = {k: getattr(args, k) for k in ("solver", "rounding") if getattr(args, k, None)}
-    if getattr(args, "balance", None):
-        opts["balance"] = args.balance == "on"
-    if getattr(args, "inexact_tol", None) is not None:
-        if not 0 < args.inexact_tol < float("inf"):  # fail before the identification runs
-            raise ValueError(f"--inexact-tol must be positive and finite, got {args.inexact_tol}.")
-        opts["inexact_tol"] = args.inexact_tol
-    scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]
-    report = run_swingup(model, episodes=args.episodes, seed=args.seed, scenarios=scenarios,
-                         out=args.out, json_path=args.json, controller_options=opts)
-    if args.json:
-        print(f"metrics written to {args.json}")
-    for f in report.get("figures", []):
-        print(f"figure written to {f}")
-    nominal = report["scenarios"].get("nominal")
-    return 0 if nominal is None or nominal["success_rate"] == 1.0 else 1

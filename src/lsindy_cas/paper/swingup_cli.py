@@ -1,0 +1,117 @@
+"""The ``lsindy swingup`` options: parse them, check every one, then run the experiment.
+
+:func:`run_from_args` checks all options *before* any work (identification takes seconds, a run
+minutes), so a typo such as ``--solver foo`` fails at once with a sentence naming the option.
+Nothing heavy is imported here until :func:`run_from_args` runs, so building the ``lsindy``
+parser stays fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .._validate import check_choice, check_int, check_real
+
+__all__ = ["add_swingup_arguments", "run_from_args"]
+
+def add_swingup_arguments(parser):
+    """Add the ``lsindy swingup`` options to an ``argparse`` parser."""
+    parser.add_argument("--model", metavar="MODEL.json",
+                        help="saved model (lsindy identify --json); identified afresh if omitted")
+    parser.add_argument("--episodes", type=int, default=20, help="random starts (default 20)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--scenarios", default=None,
+                        help="comma-separated subset of nominal,mismatch,noise (default all)")
+    parser.add_argument("--solver", default=None,
+                        help="sqp (default), sqp-gn, fatrop or ipopt (warm-started steps)")
+    parser.add_argument("--rounding", default=None,
+                        help="how the applied force is chosen: lookahead (default), sur or nearest")
+    parser.add_argument("--balance", choices=("on", "off"), default=None,
+                        help="pulse balancer near the upright (default on)")
+    parser.add_argument("--inexact-tol", type=float, default=None, metavar="TOL",
+                        help="largest constraint violation of an iteration-capped solve that is "
+                             "still applied (default 1e-6)")
+    parser.add_argument("--json", metavar="OUT.json", help="write the metrics as JSON")
+    parser.add_argument("--out", metavar="DIR", help="write the Fig. 5 analogue (PNG) here")
+    return parser
+
+
+def _scenarios(text):
+    """``"nominal, noise"`` -> ``["nominal", "noise"]``, each checked; ``None``: all scenarios."""
+    from .swingup import SCENARIOS
+
+    if text is None:
+        return list(SCENARIOS)
+    names = [s.strip() for s in text.split(",") if s.strip()]
+    if not names:
+        raise ValueError(f"--scenarios must name at least one of {', '.join(SCENARIOS)}")
+    unknown = [s for s in names if s not in SCENARIOS]
+    if unknown:
+        raise ValueError(f"--scenarios: {', '.join(unknown)} unknown (choose from "
+                         f"{', '.join(SCENARIOS)})")
+    return names
+
+
+def _controller_options(args):
+    """The :class:`~lsindy_cas.mpc.SwingUpMPC` keyword arguments the options ask for, checked."""
+    from ..control.ocp import SOLVERS
+    from ..control.rounding import ROUNDINGS
+
+    opts = {}
+    solver, rounding = getattr(args, "solver", None), getattr(args, "rounding", None)
+    if solver:
+        opts["solver"] = check_choice("--solver", solver, SOLVERS)
+    if rounding:
+        opts["rounding"] = check_choice("--rounding", rounding, ("lookahead", *ROUNDINGS))
+    if getattr(args, "balance", None):
+        opts["balance"] = args.balance == "on"
+    tol = getattr(args, "inexact_tol", None)
+    if tol is not None:
+        opts["inexact_tol"] = check_real("--inexact-tol", tol, positive=True)
+    return opts
+
+
+def _check_paths(args):
+    """``--model`` must be a file; ``--json`` must not be a directory, ``--out`` not a file."""
+    if args.model and not Path(args.model).is_file():
+        raise ValueError(f"--model {args.model}: no such file")
+    if args.json and Path(args.json).is_dir():
+        raise ValueError(f"--json {args.json}: is a directory; give a file name")
+    if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise ValueError(f"--out {args.out}: is a file; give a directory")
+
+
+def run_from_args(args):
+    """Check every option, then run :func:`~lsindy_cas.paper.swingup.run_swingup`.
+
+    Returns
+    -------
+    int
+        0 when every nominal episode succeeded (or none ran), 1 otherwise.
+
+    Raises
+    ------
+    ValueError
+        For a bad option, before the identification or any episode runs.
+    """
+    from . import swingup   # looked up at call time: the tests replace swingup.run_swingup
+
+    check_int("--episodes", args.episodes, low=1)
+    check_int("--seed", args.seed, low=0)
+    scenarios = _scenarios(args.scenarios)
+    opts = _controller_options(args)
+    _check_paths(args)
+    model = None
+    if args.model:
+        from ..identify.estimator import LagrangianSINDy
+
+        model = LagrangianSINDy.load(args.model)
+    report = swingup.run_swingup(model, episodes=args.episodes, seed=args.seed,
+                                 scenarios=scenarios, out=args.out, json_path=args.json,
+                                 controller_options=opts)
+    if args.json:
+        print(f"metrics written to {args.json}")
+    for f in report.get("figures", []):
+        print(f"figure written to {f}")
+    nominal = report["scenarios"].get("nominal")
+    return 0 if nominal is None or nominal["success_rate"] == 1.0 else 1

@@ -1,0 +1,49 @@
+"""`lsindy swingup`: a small run writes its metrics and figures; every bad option fails first."""
+import pytest
+
+from lsindy_cas import cli
+from lsindy_cas.paper import swingup
+
+
+def test_swingup_runs_small_and_writes_json_and_figures(tmp_path, capsys):
+    code = cli.main(["swingup", "--episodes", "1", "--scenarios", "nominal",
+                     "--json", str(tmp_path / "m.json"), "--out", str(tmp_path)])
+    assert code == 0
+    assert (tmp_path / "m.json").exists()
+    assert (tmp_path / "swingup_phase.png").exists() and (tmp_path / "swingup_time.png").exists()
+
+
+@pytest.mark.parametrize("argv, names", [
+    (["--episodes", "0"], "--episodes"),
+    (["--seed", "-1"], "--seed"),
+    (["--scenarios", "nominal,bogus"], "--scenarios"),
+    (["--scenarios", ","], "--scenarios"),
+    (["--solver", "foo"], "--solver"),
+    (["--rounding", "bar"], "--rounding"),
+    (["--inexact-tol", "-1"], "--inexact-tol"),
+    (["--inexact-tol", "inf"], "--inexact-tol"),
+    (["--model", "no_such_model.json"], "--model"),
+])
+def test_bad_option_is_rejected_before_any_work(argv, names, monkeypatch, capsys):
+    def no_work(*args, **kwargs):
+        raise AssertionError("the experiment started before the options were checked")
+
+    monkeypatch.setattr(swingup, "identify_cart_pendulum", no_work)
+    monkeypatch.setattr(swingup, "run_swingup", no_work)
+    assert cli.main(["swingup", *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("lsindy swingup: error:") and names in err
+
+
+def test_json_path_that_is_a_directory_is_rejected(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(swingup, "run_swingup", lambda *a, **k: pytest.fail("ran"))
+    assert cli.main(["swingup", "--json", str(tmp_path)]) == 2
+    assert "--json" in capsys.readouterr().err
+
+
+def test_default_scenarios_are_all_three(monkeypatch):
+    seen = {}
+    monkeypatch.setattr(swingup, "run_swingup",
+                        lambda model, **kw: seen.update(kw) or {"scenarios": {}})
+    assert cli.main(["swingup"]) == 0
+    assert seen["scenarios"] == list(swingup.SCENARIOS) and seen["controller_options"] == {}
