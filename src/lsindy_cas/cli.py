@@ -303,6 +303,12 @@ def _export(args) -> int:
     return 0
 
 
+def _command(sub, name: str, help: str, description: str, epilog: str):
+    """A subcommand with its one-line help, a described purpose and examples."""
+    return sub.add_parser(name, help=help, description=_wrap(description), epilog=epilog,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
 def _library_arguments(parser):
     parser.add_argument("--coords", required=True, help="coordinate names, comma-separated (x,theta)")
     parser.add_argument("--features", required=True,
@@ -319,11 +325,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
-    ident = sub.add_parser("identify", help="identify H, L and the equations of motion from files",
-                           description=_wrap("Identify the total energy H, the Lagrangian L and the "
+    ident = _command(sub, "identify", "identify H, L and the equations of motion from files",
+                   "Identify the total energy H, the Lagrangian L and the "
                            "equations of motion of a mechanical system from trajectory files, print "
-                           "them with a diagnostics report and optionally save the model (JSON)."),
-                           epilog=IDENTIFY_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+                           "them with a diagnostics report and optionally save the model (JSON).",
+                   IDENTIFY_EXAMPLE)
     ident.add_argument("trajectories", nargs="+", metavar="TRAJ", help="trajectory files (CSV/NPZ)")
     _library_arguments(ident)
     ident.add_argument("--terms", type=int, default=None,
@@ -350,31 +356,31 @@ def build_parser() -> argparse.ArgumentParser:
                        help="write the model file here (its folder must exist)")
     ident.set_defaults(func=_identify)
 
-    libp = sub.add_parser("library", help="list the candidate terms of a library and their count",
-                          description=_wrap("Build the polynomial library that lsindy identify would "
+    libp = _command(sub, "library", "list the candidate terms of a library and their count",
+                   "Build the polynomial library that lsindy identify would "
                           "build from the same --coords, --features and --degree, and list its terms "
-                          "(index and sympy name) and their count."),
-                          epilog=LIBRARY_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+                          "(index and sympy name) and their count.",
+                   LIBRARY_EXAMPLE)
     _library_arguments(libp)
     libp.set_defaults(func=_list_library)
 
-    rep = sub.add_parser("reproduce", help="the paper's Table I and Figs. 3-4, printed and saved",
-                         description=_wrap("Identify the three benchmark systems as in the paper "
+    rep = _command(sub, "reproduce", "the paper's Table I and Figs. 3-4, printed and saved",
+                   "Identify the three benchmark systems as in the paper "
                          "(Table I), compare with SINDy (Lasso, via pysindy) and KRONIC (Fig. 3: model "
                          "complexity; Fig. 4: extrapolation), print the numbers and write tables "
-                         "and PNG figures."),
-                         epilog=REPRODUCE_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         "and PNG figures.",
+                   REPRODUCE_EXAMPLE)
     rep.add_argument("--out", default="results", help="output directory (default: results)")
     rep.add_argument("--no-figures", action="store_true",
                      help="only Table I (skip the baselines and figures, which need pysindy)")
     rep.set_defaults(func=_reproduce)
 
-    sim = sub.add_parser("simulate", help="integrate a saved model's equations of motion to CSV",
-                         description=_wrap("Integrate the equations of motion of a saved model "
+    sim = _command(sub, "simulate", "integrate a saved model's equations of motion to CSV",
+                   "Integrate the equations of motion of a saved model "
                          "(lsindy identify --json) from an initial state, under constant "
                          "generalized forces, and write a trajectory file (t, <q>, <q>_dot, Q_<q>, "
-                         "<q>_ddot) that lsindy identify can read back."),
-                         epilog=SIMULATE_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         "<q>_ddot) that lsindy identify can read back.",
+                   SIMULATE_EXAMPLE)
     sim.add_argument("model", metavar="MODEL.json", help="saved model file")
     sim.add_argument("--x0", required=True,
                      help="initial state [q, q_dot], comma-separated; sympy syntax allowed "
@@ -394,11 +400,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="output trajectory (.csv or .npz; its folder must exist)")
     sim.set_defaults(func=_simulate)
 
-    exp = sub.add_parser("export", help="write a saved model's ODE and RK4 step as C code",
-                         description=_wrap("Generate C code (CasADi) for a saved model's equations "
+    exp = _command(sub, "export", "write a saved model's ODE and RK4 step as C code",
+                   "Generate C code (CasADi) for a saved model's equations "
                          "of motion, (x, u) -> x_dot, and for one integrator step at --dt (the "
-                         "MPC's RK4 map), with a header and a README of the calling convention."),
-                         epilog=EXPORT_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         "MPC's RK4 map), with a header and a README of the calling convention.",
+                   EXPORT_EXAMPLE)
     exp.add_argument("model", metavar="MODEL.json", help="saved model file")
     exp.add_argument("--c", required=True, metavar="DIR", help="existing folder for the C files")
     exp.add_argument("--dt", type=float, default=0.05, help="step length in seconds (default 0.05)")
@@ -408,12 +414,12 @@ def build_parser() -> argparse.ArgumentParser:
     exp.set_defaults(func=_export)
 
     from .paper.swingup_cli import add_swingup_arguments, run_from_args
-    sw = sub.add_parser("swingup", help="identify the cart-pendulum and swing it up by MPC",
-                        description=_wrap("Identify the paper's cart-pendulum from simulated data "
+    sw = _command(sub, "swingup", "identify the cart-pendulum and swing it up by MPC",
+                   "Identify the paper's cart-pendulum from simulated data "
                         "(or load --model), build the swing-up MPC from the identified equations and "
                         "run closed-loop episodes on the true plant with forces in {-10, 0, +10} N; "
-                        "print success, time to upright and solve times per scenario."),
-                        epilog=SWINGUP_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+                        "print success, time to upright and solve times per scenario.",
+                   SWINGUP_EXAMPLE)
     add_swingup_arguments(sw)
     sw.set_defaults(func=run_from_args)
     return p
