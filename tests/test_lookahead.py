@@ -58,7 +58,8 @@ def _tail_cost(ocp, x):
     return r @ r
 
 
-@pytest.mark.parametrize("gain, bias", [(0.0, 0.0), (np.array([0.1, 0.2]), np.array([0.01, -0.02]))])
+@pytest.mark.parametrize("gain, bias", [(0.0, 0.0),
+                                        (np.array([0.1, 0.2]), np.array([0.01, -0.02]))])
 def test_lookahead_costs_equal_brute_force_up_to_a_constant(ocp, gain, bias):
     x0 = np.array([0.2, -0.4])
     # a dynamically consistent, unsaturated relaxed plan (what the NLP would hand over)

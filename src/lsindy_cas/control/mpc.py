@@ -5,8 +5,8 @@
 solves a relaxation (partial outer convexification: one weight per admissible level, the weights
 summing to 1; or a continuous input) warm-started from the shifted previous solution, then turns
 the first interval's relaxed decision into one admissible level: by enumerating short discrete
-sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas.control.lookahead`, the default), by
-sum-up rounding with the rounding error carried across steps, or by plain rounding
+sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas.control.lookahead`, the
+default), by sum-up rounding with the rounding error carried across steps, or by plain rounding
 (:mod:`lsindy_cas.control.rounding`).  A failed or non-converged solve falls back to the shifted
 previous plan, is counted in :attr:`DiscreteInputMPC.stats`, and the next step re-solves with the
 robust solver.

@@ -138,11 +138,8 @@ class OCP:
         put("horizon", check_int("horizon", self.horizon, low=1))
         put("n_substeps", check_int("n_substeps", self.n_substeps, low=1))
         put("input_weight", check_real("input_weight", self.input_weight, nonnegative=True))
-        n_input = self.n_input
-        if isinstance(self.input_index, bool) or not isinstance(self.input_index, numbers.Integral) \
-                or not 0 <= self.input_index < n_input:
-            raise ValueError(f"input_index must be in [0, {n_input}), got {self.input_index}.")
-        put("input_index", int(self.input_index))
+        put("input_index", check_int("input_index", self.input_index, low=0,
+                                     high=self.n_input - 1))
         for name in ("stage_residual", "terminal_residual"):
             if not isinstance(getattr(self, name), ca.Function):
                 raise TypeError(f"{name} must be a casadi.Function x -> r, got "
