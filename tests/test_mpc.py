@@ -293,9 +293,11 @@ def test_online_correction_estimates_the_input_gain_error(model):
         x_0 = _model_step(ctrl, x, 0.0)
         x = x_u + 0.2 * (x_u - x_0)  # the "plant"
     vel = 2 + ctrl.pole_index
-    assert abs(ctrl._theta[vel, 0] - 0.2) < 0.05
+    assert abs(ctrl.correction.gain[vel] - 0.2) < 0.05
+    assert ctrl.balancer.correction is ctrl.correction  # handed over, one estimate
     ctrl_off = SwingUpMPC(model, adapt=False)
-    assert ctrl_off(x) in FORCES and not ctrl_off._theta.any()
+    assert ctrl_off(x) in FORCES and ctrl_off.correction is None
+    assert ctrl_off.balancer.correction is None
 
 
 @pytest.mark.parametrize("mc, L", [(1.0, 1.0), (0.9, 0.9), (1.1, 1.1)])

@@ -5,14 +5,14 @@ Near the upright one push of ``F`` held for ``dt`` changes the pole rate by abou
 10 N and 50 ms, 0.62 rad/s with the cart 10 % lighter and the pole 10 % shorter, i.e. as large
 as the success band ``|theta_dot| < 0.5 rad/s`` itself.  A relaxed (continuous-force) plan knows
 nothing of this: it asks for a small correction of a nearly still pole, and any admissible level
-other than zero then overshoots the band (``benchmarks/swingup_ceiling.py`` measured 65 % success
-on such plants even with their exact equations).
+other than zero then overshoots the band, even when the model is exact.
 
 :class:`PulseBalancer` plans with the pushes themselves.  It enumerates every input sequence over
 ``horizon`` intervals that contains at most ``max_pushes`` non-zero levels, predicts each with
 the model's discrete dynamics linearised at the upright (by superposition: each prediction is
-the free response plus at most ``max_pushes`` gathered push responses, with the MPC's online
-gain/offset correction applied), and chooses lexicographically:
+the free response plus at most ``max_pushes`` gathered push responses, with the controller's
+online gain/offset correction applied, :mod:`lsindy_cas.control.correction`), and chooses
+lexicographically:
 
 1. the least violation of the bands: pole rate ``|theta_dot| <= rate_band``, pole angle
    ``|phi| <= angle_band`` and cart ``|x| <= track_limit - track_margin`` at every predicted
@@ -44,6 +44,7 @@ import math
 import casadi as ca
 import numpy as np
 
+from .._validate import check_int, check_real
 from .mpc import wrap_angle
 
 __all__ = ["PulseBalancer"]
@@ -112,35 +113,37 @@ class PulseBalancer:
     brake_fraction : float
         Fraction of the largest lean acceleration assumed available to stop the cart when
         deciding whether to take over.
+    correction : InputGainCorrection, optional
+        The controller's online correction (:mod:`lsindy_cas.control.correction`); its current
+        ``gain`` and ``bias`` correct every prediction.  None: no correction.
     """
 
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=16, max_pushes=3, rate_band=0.42, angle_band=0.08, region=(0.12, 0.7),
                  max_lean=0.04, cart_frequency=1.0, cart_damping=1.0, lean_weight=1e3,
                  push_weight=1e-3, mode_weight=1.0, track_margin=0.25, track_weight=10.0,
-                 brake_fraction=0.5):
+                 brake_fraction=0.5, correction=None):
         levels = np.asarray(levels, dtype=float)
         zero = np.flatnonzero(levels == 0.0)
         if zero.size != 1:
             raise ValueError(f"the balancer needs 0 in the force set, got {levels.tolist()}.")
-        for name, value in (("horizon", horizon), ("max_pushes", max_pushes)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{name} must be a positive integer, got {value!r}.")
-        positive = {"rate_band": rate_band, "angle_band": angle_band, "max_lean": max_lean,
-                    "cart_frequency": cart_frequency, "cart_damping": cart_damping,
-                    "lean_weight": lean_weight, "brake_fraction": brake_fraction,
-                    "track_weight": track_weight}
-        nonneg = {"push_weight": push_weight, "mode_weight": mode_weight,
-                  "track_margin": track_margin}
+        horizon = check_int("horizon", horizon, low=1)
+        max_pushes = check_int("max_pushes", max_pushes, low=1)
+        rate_band = check_real("rate_band", rate_band, positive=True)
+        angle_band = check_real("angle_band", angle_band, positive=True)
+        max_lean = check_real("max_lean", max_lean, positive=True)
+        cart_frequency = check_real("cart_frequency", cart_frequency, positive=True)
+        cart_damping = check_real("cart_damping", cart_damping, positive=True)
+        lean_weight = check_real("lean_weight", lean_weight, positive=True)
+        brake_fraction = check_real("brake_fraction", brake_fraction, positive=True)
+        track_weight = check_real("track_weight", track_weight, positive=True)
+        push_weight = check_real("push_weight", push_weight, nonnegative=True)
+        mode_weight = check_real("mode_weight", mode_weight, nonnegative=True)
+        track_margin = check_real("track_margin", track_margin, nonnegative=True)
         try:
             region = tuple(float(r) for r in region)
         except (TypeError, ValueError):
             raise ValueError(f"region must be two positive numbers, got {region!r}.") from None
-        for name, value in {**positive, **nonneg}.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
-                    or not math.isfinite(value) or value < 0 or (name in positive and value == 0):
-                kind = "positive" if name in positive else "non-negative"
-                raise ValueError(f"{name} must be a finite {kind} number, got {value!r}.")
         if len(region) != 2 or not all(math.isfinite(r) and r > 0 for r in region):
             raise ValueError(f"region must be two positive numbers, got {region!r}.")
         if track_margin >= track_limit:
@@ -155,6 +158,7 @@ class PulseBalancer:
         self.lean_weight, self.push_weight, self.mode_weight = lean_weight, push_weight, mode_weight
         self.x_ref = np.zeros(4)
         self.x_ref[self.ip] = upright
+        self.correction = correction
 
         # linearisations at the upright: the discrete step (predictions) and the ODE (kappa)
         xs, us = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
@@ -228,18 +232,21 @@ class PulseBalancer:
             self.engaged = bool(abs(stop) <= self.track_limit - self.track_margin)
         return self.engaged
 
-    def __call__(self, x, gain=None, bias=None):
+    def __call__(self, x):
         """Level index to apply at state ``x`` (4,), or None where the balancer does not act.
 
-        ``gain`` and ``bias`` (4,) correct the predictions as in the MPC's lookahead:
-        ``x+ = A x + (1 + gain) * B u + bias`` (elementwise).
+        The :attr:`correction`'s current ``gain`` and ``bias`` (4,) correct the predictions
+        as in the controller's lookahead: ``x+ = A x + (1 + gain) * B u + bias`` (elementwise).
         """
         e = np.asarray(x, dtype=float) - self.x_ref
         e[self.ip] = wrap_angle(e[self.ip])
         if not self.active(e):
             return None
-        gain = np.zeros(4) if gain is None else np.asarray(gain, dtype=float)
-        bias = np.zeros(4) if bias is None else np.asarray(bias, dtype=float)
+        if self.correction is None:
+            gain, bias = np.zeros(4), np.zeros(4)
+        else:
+            gain = np.asarray(self.correction.gain, dtype=float)
+            bias = np.asarray(self.correction.bias, dtype=float)
         H = self.horizon
         b = self.B * (1.0 + gain)
         free, impulse = np.empty((H, 4)), np.empty((H, 4))

@@ -27,7 +27,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .mpc import DiscreteInputMPC, MPCStats, _check_positive, wrap_angle
+from .._validate import check_real
+from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
@@ -112,9 +113,7 @@ class SwingUpMPC(DiscreteInputMPC):
         ``cart_frequency``, ``cart_damping``, ``lean_weight``, ``push_weight``,
         ``mode_weight``, ``track_weight``, ``brake_fraction``).  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
-        without 0 in the set is an error).  With ±10 % mass/length mismatch it raised
-        swing-up success on the 8 mismatched plants × 20 starts from 145/160 to 158/160
-        (``benchmarks/swingup_ceiling.py``).
+        without 0 in the set is an error).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -158,8 +157,9 @@ class SwingUpMPC(DiscreteInputMPC):
             actuated = act[0]
         if actuated not in coords:
             raise ValueError(f"actuated must be one of {coords}, got {actuated!r}.")
-        self.track_limit = _check_positive("track_limit", track_limit)
-        if not 0 <= track_margin < self.track_limit:
+        self.track_limit = check_real("track_limit", track_limit, positive=True)
+        track_margin = check_real("track_margin", track_margin, nonnegative=True)
+        if not track_margin < self.track_limit:
             raise ValueError(f"track_margin must be in [0, track_limit), got {track_margin!r}.")
         self.coords, self.cart = coords, actuated
         ic = coords.index(actuated)
@@ -203,7 +203,8 @@ class SwingUpMPC(DiscreteInputMPC):
         if balance is not False:
             if balance is True:
                 balance = {}
-            allowed = set(PulseBalancer.__init__.__kwdefaults__) - {"track_margin"}
+            own = {"track_margin", "correction"}  # set by the controller itself
+            allowed = set(PulseBalancer.__init__.__kwdefaults__) - own
             unknown = set(balance) - allowed
             if unknown:
                 raise ValueError(f"balance has unknown keys {sorted(unknown)}; known: "
@@ -211,7 +212,7 @@ class SwingUpMPC(DiscreteInputMPC):
             self.balancer = PulseBalancer(
                 self.step_function, ode, self.levels, cart_index=ic, pole_index=ip,
                 upright=self.upright, track_limit=self.track_limit, dt=self.dt,
-                track_margin=track_margin, **balance)
+                track_margin=track_margin, correction=self.correction, **balance)
 
     def reset(self):
         """Forget the warm start, the rounding memory and the balancer's mode (see
@@ -229,4 +230,4 @@ class SwingUpMPC(DiscreteInputMPC):
         """The balancer's level near the upright (None elsewhere or without a balancer)."""
         if self.balancer is None:
             return None
-        return self.balancer(x, *self._correction())
+        return self.balancer(x)

@@ -16,6 +16,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from .._validate import check_int
+
 __all__ = ["build_lookahead"]
 
 
@@ -26,34 +28,23 @@ def _gn(residual, x):
     return ca.sumsqr(r), 2 * ca.mtimes(jac.T, r), 2 * ca.mtimes(jac.T, jac)
 
 
-def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth, dt,
-                    stage_residual, terminal_residual, input_weight, state_lb, state_ub,
-                    extra_penalty=None, bound_weight=1e5):
+def build_lookahead(ocp, depth, extra_penalty=None, bound_weight=1e5):
     """Build the scoring function of all discrete sequences of length ``depth``.
 
     Parameters
     ----------
-    step : casadi.Function
-        ``F(x, u) -> x_next`` over one interval.
-    n_state, n_input, input_index : int
-        State size, model input size, index of the actuated input.
-    levels : ndarray, shape (n_levels,)
-        Admissible levels.
-    horizon, depth : int
-        MPC horizon ``N`` and enumeration depth ``K`` (``1 <= K < N``).
-    dt : float
-        Interval length (s).
-    stage_residual, terminal_residual : casadi.Function
-        ``x -> r``; the costs are ``dt * |r|^2`` per interval and ``|r_N|^2`` at the end.
-    input_weight : float
-        Weight of ``(u / max|levels|)**2`` per interval (times ``dt``).
-    state_lb, state_ub : ndarray, shape (n_state,)
-        State bounds, enforced on the enumerated states by a quadratic penalty.
+    ocp : OCP
+        The problem (:class:`~lsindy_cas.control.ocp.OCP`): its discrete step, levels, horizon
+        ``N``, stage and terminal costs (``dt * |r|^2`` per interval, ``|r_N|^2`` at the end),
+        input weight (of ``(u / max|levels|)**2`` per interval, times ``dt``) and state bounds,
+        here enforced on the enumerated states by a quadratic penalty.
+    depth : int
+        Enumeration depth ``K`` in control intervals (``1 <= K < N``).
     extra_penalty : casadi.Function, optional
         ``x -> scalar`` added for every enumerated state (e.g. a band the discrete moves
         should keep a rate in).
     bound_weight : float
-        Weight of that penalty.
+        Weight of the state-bound penalty.
 
     Returns
     -------
@@ -61,13 +52,20 @@ def build_lookahead(step, n_state, n_input, input_index, levels, horizon, depth,
         ``(x0 (n_state,), X (n_state, N) planned x_1..x_N, U (1, N) planned inputs,
         free (1, N) 1 where the planned input is strictly inside the level range,
         gain (n_state,), bias (n_state,) an online correction of the enumerated steps:
-        ``x+ = F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``) -> cost (n_levels**depth,)``; sequence ``j`` starts with level
-        ``j // n_levels**(depth - 1)``.
+        ``x+ = F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``) -> cost (n_levels**depth,)``;
+        sequence ``j`` starts with level ``j // n_levels**(depth - 1)``.
     """
-    scale = float(np.max(np.abs(levels))) or 1.0
+    step, n_state, levels, horizon = ocp.step, ocp.n_state, ocp.levels, ocp.horizon
+    dt, input_weight = ocp.dt, ocp.input_weight
+    stage_residual, terminal_residual = ocp.stage_residual, ocp.terminal_residual
+    state_lb, state_ub = ocp.state_lb, ocp.state_ub
+    depth = check_int("depth", depth, low=1)
+    if depth >= horizon:
+        raise ValueError(f"depth must be smaller than horizon ({horizon}), got {depth}.")
+    scale = ocp.scale
     xs = ca.SX.sym("x", n_state)
     us = ca.SX.sym("u", 1)
-    full_u = ca.vertcat(*[us if i == input_index else 0 for i in range(n_input)])
+    full_u = ocp.full_input(us)
     x_next = step(xs, full_u)
     A, B = ca.jacobian(x_next, xs), ca.jacobian(x_next, us)
     lin = ca.Function("lin", [xs, us], [x_next, A, B])

@@ -1,0 +1,116 @@
+"""Online correction of a model's one-step predictions against plant/model mismatch.
+
+:class:`InputGainCorrection` fits, per state component ``i``, the one-step prediction errors of
+the measured states as an input-gain error and an offset,
+
+    ``x_i - F_i(x_prev, u) = gain_i * (F_i(x_prev, u) - F_i(x_prev, 0)) + bias_i``,
+
+by recursive least squares with exponential forgetting (offset-free MPC), and predicts with
+``F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``.  ``F(x, u) - F(x, 0)`` is the input's effect
+over one interval, so ``gain`` scales it (a plant whose push is 20 % stronger has
+``gain = 0.2``) and ``bias`` absorbs what does not depend on the input.  The controller owns one
+instance and hands it to whatever predicts with it (its lookahead, the balancer).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validate import check_int, check_real
+
+__all__ = ["InputGainCorrection"]
+
+
+class InputGainCorrection:
+    """Recursive-least-squares estimate of the input gain error and offset (module docstring).
+
+    Parameters
+    ----------
+    step : casadi.Function
+        The model's discrete map ``F(x (n_state,), u (n_input,)) -> x_next`` over one interval.
+    input_index : int
+        Which entry of ``u`` is actuated (the others are held at zero).
+    forgetting : float
+        RLS forgetting factor in (0, 1].
+    max_gain : float
+        Bound on ``|gain|``.
+
+    Attributes
+    ----------
+    theta : ndarray, shape (n_state, 2)
+        Per state component, the estimate ``[gain, bias]``.
+    cov : ndarray, shape (n_state, 2, 2)
+        Per state component, the RLS covariance of ``theta``.
+    """
+
+    #: initial covariance of ``[gain, bias]``: a prior that the model is right
+    PRIOR = (1.0, 1e-2)
+    #: bound on the entries of the covariance (keeps forgetting from blowing it up)
+    COV_BOUND = 1e3
+
+    def __init__(self, step, input_index, *, forgetting=0.95, max_gain=0.5):
+        self.step = step
+        self.n_state, self.n_input = step.size1_in(0), step.size1_in(1)
+        self.input_index = check_int("input_index", input_index, low=0, high=self.n_input - 1)
+        self.forgetting = check_real("forgetting", forgetting)
+        if not 0 < self.forgetting <= 1:
+            raise ValueError(f"forgetting must be in (0, 1], got {forgetting!r}.")
+        self.max_gain = check_real("max_gain", max_gain, nonnegative=True)
+        self.reset()
+
+    def reset(self):
+        """Back to no correction (``gain = bias = 0``) and the prior covariance."""
+        self.theta = np.zeros((self.n_state, 2))
+        self.cov = np.tile(np.diag(self.PRIOR), (self.n_state, 1, 1))
+
+    @property
+    def gain(self):
+        """Input-gain error per state component, shape (n_state,)."""
+        return self.theta[:, 0]
+
+    @property
+    def bias(self):
+        """Offset per state component, shape (n_state,)."""
+        return self.theta[:, 1]
+
+    def _responses(self, x, force):
+        """The model's next state ``F(x, u)`` with ``force`` applied and ``F(x, 0)``."""
+        u = np.zeros(self.n_input)
+        u[self.input_index] = force
+        x_u = np.asarray(self.step(x, u)).ravel()
+        x_0 = np.asarray(self.step(x, np.zeros(self.n_input))).ravel()
+        return x_u, x_0
+
+    def predict(self, x, force):
+        """Corrected one-step prediction from state ``x`` (n_state,) under ``force``.
+
+        Returns
+        -------
+        ndarray, shape (n_state,)
+            ``F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``.
+        """
+        x_u, x_0 = self._responses(np.asarray(x, dtype=float), float(force))
+        return x_u + self.gain * (x_u - x_0) + self.bias
+
+    def update(self, x_prev, force, x):
+        """One RLS step on the transition ``x_prev --force--> x`` (measured states).
+
+        Parameters
+        ----------
+        x_prev, x : ndarray, shape (n_state,)
+            Measured states one interval apart.
+        force : float
+            The input applied over that interval.
+        """
+        x_u, x_0 = self._responses(x_prev, force)
+        err = x - x_u
+        lam = self.forgetting
+        for i in range(self.n_state):
+            phi = np.array([x_u[i] - x_0[i], 1.0])
+            P = self.cov[i]
+            Pphi = P @ phi
+            k = Pphi / (lam + phi @ Pphi)
+            self.theta[i] += k * (err[i] - phi @ self.theta[i])
+            self.cov[i] = (P - np.outer(k, Pphi)) / lam
+            np.clip(self.cov[i], -self.COV_BOUND, self.COV_BOUND, out=self.cov[i])
+        np.clip(self.theta[:, 0], -self.max_gain, self.max_gain, out=self.theta[:, 0])

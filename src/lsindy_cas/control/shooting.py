@@ -1,0 +1,255 @@
+"""Multiple-shooting transcription of a discrete-input optimal control problem, built once.
+
+Decision variables are ordered stage by stage, ``[c_0, x_1, c_1, x_2, ..., c_{N-1}, x_N]``
+(the initial state ``x_0`` is the parameter ``p``), and constraints as
+``[gap_0, path_0, gap_1, path_1, ...]`` with ``gap_k = x_{k+1} - F(x_k, c_k)`` (negated for
+HPIPM): the block structure that fatrop and HPIPM exploit (``nx = [0, n, ..., n]``).  ``c_k``
+is either a weight per admissible level (``relaxation="poc"``, partial outer convexification,
+one equality ``sum(c_k) = 1`` per stage) or the continuous input itself
+(``relaxation="continuous"``).  State bounds are soft: one slack ``s_k >= 0`` per stage with
+an exact (L1) plus quadratic penalty, so that no measured state makes a solve infeasible.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["SOLVERS", "MultipleShootingNLP"]
+
+SOLVERS = ("sqp", "sqp-gn", "fatrop", "ipopt")
+
+
+class MultipleShootingNLP:
+    """The parametric NLP of one MPC step and its solver (built once, solved every step).
+
+    Parameters
+    ----------
+    ocp : OCP
+        The problem: dynamics (its :attr:`OCP.step`), levels, horizon, costs and the state
+        bounds, which the NLP softens with one slack per stage.  The input penalty is
+        ``input_weight * dt * sum_i c_i (F_i / F_max)**2`` (POC) or
+        ``input_weight * dt * (u / F_max)**2`` (continuous).
+    relaxation : {"poc", "continuous"}
+    solver : {"sqp", "sqp-gn", "fatrop", "ipopt"}
+        Solver of warm-started steps (:attr:`solver`); the robust solver for cold guesses
+        and for recovery after a failure is IPOPT (``solvers["cold"]``, ``["recover"]``).
+    max_iter : int
+        Iteration cap of :attr:`solver`.
+    tol : float
+        Convergence tolerance.
+    slack_weight : float
+        Weight of ``s + s^2`` per stage for the soft state bounds.
+    inexact_tol : float
+        Largest constraint violation of a capped solve's iterate that still counts as
+        ``"inexact"`` rather than ``"failed"`` (see :meth:`solve`).
+    """
+
+    def __init__(self, ocp, relaxation, solver, max_iter, tol, slack_weight=1e5,
+                 inexact_tol=1e-6):
+        self.ocp = ocp
+        step, n_state = ocp.step, ocp.n_state
+        horizon, dt, input_weight = ocp.horizon, ocp.dt, ocp.input_weight
+        stage_residual, terminal_residual = ocp.stage_residual, ocp.terminal_residual
+        levels, state_lb, state_ub = ocp.levels, ocp.state_lb, ocp.state_ub
+        self.n_state, self.horizon, self.relaxation = n_state, horizon, relaxation
+        self.inexact_tol = float(inexact_tol)
+        self.levels = np.asarray(levels, dtype=float)
+        n_c = self.levels.size if relaxation == "poc" else 1
+        self.n_control = n_c
+        scale = ocp.scale
+        level_dm = ca.DM(self.levels)
+        bounded = [i for i in range(n_state)
+                   if np.isfinite(state_lb[i]) or np.isfinite(state_ub[i])]
+        n_s = 1 if bounded else 0  # one slack per stage softens every state bound
+
+        sym = ca.SX  # expanded: the oracle functions run in CasADi's fast SX virtual machine
+        p = sym.sym("x0", n_state)
+        cs = [sym.sym(f"c{k}", n_c) for k in range(horizon)]
+        # x_0 is given, so stage 0 has no slack: ss[k] softens the bounds of x_k, k >= 1
+        ss = [sym.sym(f"s{k}", n_s if k > 0 else 0) for k in range(horizon)]
+        xs = [p] + [sym.sym(f"x{k}", n_state) for k in range(1, horizon + 1)]
+        z, g, f = [], [], 0
+        lbg, ubg, rows = [], [], []
+        residuals = []  # for the Gauss-Newton Hessian
+
+        def soft_bounds(x, sk):
+            """Rows lb_i <= x_i + s and x_i - s <= ub_i for the bounded states."""
+            out = []
+            for i in bounded:
+                out += [x[i] + sk, x[i] - sk]
+                lbg.extend([state_lb[i], -np.inf])
+                ubg.extend([np.inf, state_ub[i]])
+            return out
+
+        for k in range(horizon + 1):
+            first = len(lbg)
+            stage_g = []
+            if k < horizon:
+                c = cs[k]
+                if relaxation == "poc":
+                    force = ca.dot(level_dm, c)
+                    penalty = ca.dot(c, ca.DM((self.levels / scale) ** 2))
+                else:
+                    force = c[0]
+                    penalty = (c[0] / scale) ** 2
+                u = ocp.full_input(force)
+                z += [c, ss[k], xs[k + 1]]
+                gap = xs[k + 1] - step(xs[k], u)  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
+                stage_g.append(-gap if solver.startswith("sqp") else gap)
+                lbg.extend([0.0] * n_state)
+                ubg.extend([0.0] * n_state)
+                if relaxation == "poc":
+                    stage_g.append(ca.sum1(c) - 1)
+                    lbg.append(0.0)
+                    ubg.append(0.0)
+                f += dt * (ca.sumsqr(stage_residual(xs[k])) + input_weight * penalty)
+                if k > 0:
+                    residuals.append(np.sqrt(dt) * stage_residual(xs[k]))
+                    stage_g += soft_bounds(xs[k], ss[k])
+                if relaxation == "continuous":
+                    residuals.append(np.sqrt(dt * input_weight) * c[0] / scale)
+                if n_s and k > 0:
+                    f += slack_weight * (ca.sum1(ss[k]) + ca.sumsqr(ss[k]))
+                    residuals.append(np.sqrt(slack_weight) * ss[k])
+            else:
+                f += ca.sumsqr(terminal_residual(xs[k]))
+                residuals.append(terminal_residual(xs[k]))
+            g += stage_g
+            rows.append(np.arange(first, len(lbg)))
+        nlp = {"x": ca.vertcat(*z), "p": p, "f": f, "g": ca.vertcat(*g)}
+        # Gauss-Newton Hessian of the Lagrangian: 2 J'J of the stacked residuals, a small
+        # regularisation on every variable (the POC weights enter the cost linearly)
+        zz, lam_f, lam_g = nlp["x"], sym.sym("lam_f"), sym.sym("lam_g", len(lbg))
+        jr = ca.jacobian(ca.vertcat(*residuals), zz)
+        hess = lam_f * (2 * ca.mtimes(jr.T, jr) + 1e-6 * ca.DM.eye(zz.numel()))
+        self._gn_hessian = ca.Function("nlp_hess_l", [zz, p, lam_f, lam_g], [hess],
+                                       ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"])
+        self.lbg, self.ubg, self._rows = np.array(lbg), np.array(ubg), rows
+        self.n_slack = n_s
+        # index tables of the decision vector: stage k = [c_k, s_k, x_{k+1}] (no s_0)
+        widths = np.array([n_c + n_state] + [n_c + n_s + n_state] * (horizon - 1))
+        base = np.concatenate([[0], np.cumsum(widths)[:-1]])[:, None]
+        self._ic = base + np.arange(n_c)
+        self._is = base[1:] + n_c + np.arange(n_s)
+        self._ix = base + widths[:, None] - n_state + np.arange(n_state)
+        self.n_var = int(widths.sum())
+        c_lb = np.zeros(n_c) if relaxation == "poc" else self.levels[:1]
+        c_ub = np.ones(n_c) if relaxation == "poc" else self.levels[-1:]
+        self.lbx = np.full(self.n_var, -np.inf)
+        self.ubx = np.full(self.n_var, np.inf)
+        self.lbx[self._ic], self.ubx[self._ic] = c_lb, c_ub
+        self.lbx[self._is] = 0.0
+        ng_path = [len(r) - (n_state if k < horizon else 0) for k, r in enumerate(rows)]
+        nu = [n_c] + [n_c + n_s] * (horizon - 1) + [0]
+        self.solver_name = solver
+        self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol)
+        # cold starts (first step of an episode) and recoveries after a failed step need many
+        # more iterations than warm starts: exact-Hessian IPOPT on the same NLP
+        cold = max(10 * max_iter, 300)
+        self.max_iters = {"warm": max_iter, "recover": cold, "cold": cold}
+        self.solvers = {"warm": self.solver}
+        self.solvers["cold"] = self.solvers["recover"] = self._make_solver(
+            nlp, "ipopt", nu, ng_path, cold, tol)
+
+    def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol):
+        n, N = self.n_state, self.horizon
+        common = {"expand": True, "print_time": False, "error_on_fail": False}
+        if solver == "ipopt":
+            opts = dict(common, ipopt={
+                "print_level": 0, "sb": "yes", "max_iter": max_iter, "tol": tol,
+                "acceptable_tol": 10 * tol, "warm_start_init_point": "yes",
+                "mu_init": 1e-3, "warm_start_bound_push": 1e-6,
+                "warm_start_mult_bound_push": 1e-6, "linear_solver": "mumps"})
+            return ca.nlpsol("mpc", "ipopt", nlp, opts)
+        structure = {"N": N, "nx": [0] + [n] * N, "nu": nu, "ng": ng_path}
+        if solver == "fatrop":
+            opts = dict(common, structure_detection="manual", **structure,
+                        fatrop={"print_level": 0, "max_iter": max_iter, "tolerance": tol,
+                                "mu_init": 1e-2})
+            return ca.nlpsol("mpc", "fatrop", nlp, opts)
+        # SQP with HPIPM (a Riccati-based interior-point QP solver for this stage structure);
+        # the exact Hessian is convexified block by block, "sqp-gn" uses Gauss-Newton instead
+        qp = dict(structure, hpipm={"iter_max": 100, "warm_start": 1}, error_on_fail=False)
+        opts = dict(common, qpsol="hpipm", qpsol_options=qp, max_iter=max_iter, tol_pr=tol,
+                    tol_du=10 * tol, print_header=False, print_iteration=False,
+                    print_status=False)
+        if solver == "sqp":
+            opts["convexify_strategy"] = "eigen-clip"
+        else:
+            opts["hess_lag"] = self._gn_hessian
+        return ca.nlpsol("mpc", "sqpmethod", nlp, opts)
+
+    # --- packing -------------------------------------------------------------------------
+    def pack(self, controls, states, slacks=None):
+        """Decision vector from controls (N, n_control), states x_1..x_N (N, n_state) and
+        slacks of the bounds on x_1..x_{N-1} (N - 1, n_slack; zero if omitted)."""
+        z = np.zeros(self.n_var)
+        z[self._ic], z[self._ix] = controls, states
+        if slacks is not None:
+            z[self._is] = slacks
+        return z
+
+    def unpack(self, z):
+        """Controls (N, n_control), states x_1..x_N (N, n_state), slacks (N - 1, n_slack)."""
+        z = np.asarray(z, dtype=float).ravel()
+        return z[self._ic], z[self._ix], z[self._is]
+
+    def shift(self, z, lam_g):
+        """Warm start for the next step: drop the first interval, repeat the last one."""
+        roll = (lambda a: np.concatenate([a[1:], a[-1:]]))
+        c, x, s = self.unpack(z)
+        zs = self.pack(roll(c), roll(x), roll(s))
+        lam_g = np.asarray(lam_g, dtype=float).ravel()
+        ls = lam_g.copy()
+        for k in range(self.horizon - 1):
+            cur, nxt = self._rows[k], self._rows[k + 1]
+            if nxt.size >= cur.size:
+                ls[cur] = lam_g[nxt[: cur.size]]
+        return zs, ls
+
+    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm"):
+        """Solve from state ``x_init`` with a warm start.
+
+        Parameters
+        ----------
+        x_init : ndarray, shape (n_state,)
+        z0, lam_g0, lam_x0 : ndarray
+            Primal and dual initial guesses.
+        kind : {"warm", "recover", "cold"}
+            Which solver of :attr:`solvers` to use.
+
+        Returns
+        -------
+        outcome : {"converged", "inexact", "failed"}
+            ``"inexact"``: the iteration cap was hit but the iterate satisfies every constraint
+            to ``inexact_tol`` (a nearly dynamically consistent, feasible plan).
+        z, lam_g, lam_x : ndarray
+            Final iterate.
+        iters : int
+        """
+        solver = self.solvers[kind]
+        res = solver(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg,
+                     ubg=self.ubg, lam_g0=lam_g0, lam_x0=lam_x0)
+        st = solver.stats()
+        z = np.asarray(res["x"]).ravel()
+        g = np.asarray(res["g"]).ravel()
+        status = str(st.get("return_status", st.get("unified_return_status", "")))
+        self.last_status = status
+        finite = bool(np.all(np.isfinite(z)) and np.all(np.isfinite(g)))
+        viol = max(0.0, np.max(self.lbg - g, initial=0.0), np.max(g - self.ubg, initial=0.0),
+                   np.max(self.lbx - z, initial=0.0), np.max(z - self.ubx, initial=0.0))
+        # sqpmethod may report success=False next to a converged "Solve_Succeeded" (when the
+        # QP of the final, unneeded iteration reported a problem): trust the status
+        converged = bool(st.get("success", False)) or status in (
+            "Solve_Succeeded", "Solved_To_Acceptable_Level")
+        iters = int(st.get("iter_count", -1))
+        capped = iters >= self.max_iters[kind]
+        self.last_violation = viol
+        if finite and converged:
+            outcome = "converged"
+        elif finite and capped and viol <= self.inexact_tol:
+            outcome = "inexact"
+        else:
+            outcome = "failed"
+        return outcome, z, np.asarray(res["lam_g"]).ravel(), np.asarray(res["lam_x"]).ravel(), iters

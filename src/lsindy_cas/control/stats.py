@@ -1,0 +1,80 @@
+"""Counters and solve times of an MPC, accumulated over episodes: :class:`MPCStats`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["MPCStats"]
+
+
+@dataclass
+class MPCStats:
+    """Counters of an MPC's solves, accumulated over episodes until :meth:`clear`.
+
+    Attributes
+    ----------
+    n_solves : int
+        NLP solves attempted (one per control step).
+    n_failures : int
+        Solves that failed or did not converge to a usable plan; each applied the shifted
+        previous plan instead.
+    n_inexact : int
+        Solves stopped by the iteration cap whose iterate satisfied every constraint (dynamics,
+        bounds) to ``inexact_tol``; applied when ``accept_inexact=True``, else counted as
+        failures too.
+    solve_times : list of float
+        Wall-clock seconds per solve (the solver call only).
+    solve_cpu_times : list of float
+        CPU seconds of the calling thread per solve: unlike the wall-clock time, not inflated
+        when other processes compete for the cores.
+    step_times : list of float
+        Wall-clock seconds per controller call (solve + warm start + rounding + checks).
+    n_balanced : int
+        Steps whose level was chosen by a subclass's own rule instead of from the relaxed plan
+        (:class:`~lsindy_cas.mpc.SwingUpMPC`: the pulse balancer near the upright).
+    iterations : list of int
+        Solver iterations per solve.
+    solve_kinds : list of str
+        Which solver ran each solve: ``"warm"`` (the warm-started solver), ``"cold"`` (IPOPT,
+        first step of an episode) or ``"recover"`` (IPOPT after a failed step).
+    statuses : dict
+        Count of each solver return status.
+    """
+
+    n_solves: int = 0
+    n_failures: int = 0
+    n_inexact: int = 0
+    n_balanced: int = 0
+    solve_times: list = field(default_factory=list)
+    solve_cpu_times: list = field(default_factory=list)
+    step_times: list = field(default_factory=list)
+    iterations: list = field(default_factory=list)
+    solve_kinds: list = field(default_factory=list)
+    statuses: dict = field(default_factory=dict)
+
+    def clear(self):
+        """Reset all counters."""
+        self.__init__()
+
+    def summary(self):
+        """Dictionary of counts and solve-time percentiles in milliseconds (overall, and count,
+        median and maximum per solve kind under ``"by_kind"``) and the solver statuses."""
+        t = np.asarray(self.solve_times) * 1e3
+        kinds = np.asarray(self.solve_kinds, dtype=object)  # appended with solve_times
+        by_kind = {k: {"n": int(np.sum(kinds == k)),
+                       "solve_ms_median": float(np.median(t[kinds == k])),
+                       "solve_ms_max": float(t[kinds == k].max())}
+                   for k in ("warm", "cold", "recover") if np.any(kinds == k)}
+        c = np.asarray(self.solve_cpu_times) * 1e3
+        s = np.asarray(self.step_times) * 1e3
+        pct = (lambda a, q: float(np.percentile(a, q)) if a.size else float("nan"))
+        return {"n_solves": self.n_solves, "n_failures": self.n_failures,
+                "n_inexact": self.n_inexact, "n_balanced": self.n_balanced,
+                "solve_ms_median": pct(t, 50), "solve_ms_p99": pct(t, 99),
+                "solve_ms_max": float(t.max()) if t.size else float("nan"),
+                "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),
+                "step_ms_median": pct(s, 50), "step_ms_p99": pct(s, 99),
+                "iterations_median": pct(np.asarray(self.iterations), 50), "by_kind": by_kind,
+                "statuses": dict(self.statuses)}
