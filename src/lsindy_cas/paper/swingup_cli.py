@@ -54,7 +54,7 @@ def _scenarios(text):
 
 def _controller_options(args):
     """The :class:`~lsindy_cas.mpc.SwingUpMPC` keyword arguments the options ask for, checked."""
-    from ..control.ocp import SOLVERS
+    from ..control.shooting import SOLVERS
     from ..control.rounding import ROUNDINGS
 
     opts = {}
