@@ -4,8 +4,9 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= results
+BENCH  ?= bench-results
 
-.PHONY: demo test test-all bench clean
+.PHONY: demo test test-all bench bench-sweep clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,15 +19,21 @@ demo: $(STAMP)
 	$(VENV)/bin/lsindy swingup --out $(OUT) --json $(OUT)/swingup.json
 
 test: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -n auto -m "not slow"
 
 test-all: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto
 
-bench: $(STAMP)
-	$(PY) benchmarks/bench_search.py
-	$(PY) benchmarks/bench_mpc.py
-	$(PY) benchmarks/noise_sweep.py
+# Benchmarks write into $(BENCH)/ (untracked); the tracked benchmarks/results/ are regenerated on
+# purpose, by running a script without its output option.
+bench: $(STAMP)          # quick speed benchmarks: search (~1.5 min) and MPC (~7 min)
+	mkdir -p $(BENCH)
+	$(PY) benchmarks/bench_search.py --out $(BENCH)/search.json
+	$(PY) benchmarks/bench_mpc.py --json $(BENCH)/mpc.json
+
+bench-sweep: $(STAMP)    # the noise sweep, ~1 h on 2 cores
+	mkdir -p $(BENCH)
+	$(PY) benchmarks/noise_sweep.py --out $(BENCH) --figures $(BENCH)
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(OUT) $(BENCH) .pytest_cache
