@@ -1,4 +1,5 @@
 import functools
+import json
 import importlib
 import importlib.util
 from pathlib import Path
@@ -67,3 +68,14 @@ def load_script():
         return module
 
     return load
+
+
+@pytest.fixture
+def cart_model(tmp_path):
+    """The cart-pendulum's true energy as a model file (actuated on x)."""
+    path = tmp_path / "cart.json"
+    path.write_text(json.dumps({
+        "coords": ["x", "theta"], "actuated": ["x"],
+        "hamiltonian_terms": {"x_dot**2": 0.55, "theta_dot**2": 0.05,
+                              "theta_dot*x_dot*cos(theta)": 0.1, "cos(theta)": -0.981}}))
+    return path

@@ -8,16 +8,6 @@ from lsindy_cas import Trajectory, systems
 from lsindy_cas.cli import main
 
 
-@pytest.fixture
-def cart_model(tmp_path):
-    """The cart-pendulum's true energy as a model file (actuated on x)."""
-    path = tmp_path / "cart.json"
-    path.write_text(json.dumps({
-        "coords": ["x", "theta"], "actuated": ["x"],
-        "hamiltonian_terms": {"x_dot**2": 0.55, "theta_dot**2": 0.05,
-                              "theta_dot*x_dot*cos(theta)": 0.1, "cos(theta)": -0.981}}))
-    return path
-
 
 def test_simulate_reproduces_the_true_motion(cart_model, tmp_path, capsys):
     out = tmp_path / "sim.csv"

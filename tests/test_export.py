@@ -14,15 +14,6 @@ from lsindy_cas.control.ocp import rk4_step
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="needs the system C compiler")
 
 
-@pytest.fixture
-def cart_model(tmp_path):
-    path = tmp_path / "cart.json"
-    path.write_text(json.dumps({
-        "coords": ["x", "theta"], "actuated": ["x"],
-        "hamiltonian_terms": {"x_dot**2": 0.55, "theta_dot**2": 0.05,
-                              "theta_dot*x_dot*cos(theta)": 0.1, "cos(theta)": -0.981}}))
-    return path
-
 
 def _load(folder, name):
     lib = folder / f"lib{name}.so"

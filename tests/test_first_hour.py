@@ -28,15 +28,6 @@ def cart_csv(tmp_path_factory):
     return tr.save(folder / "run.csv")
 
 
-@pytest.fixture
-def cart_model(tmp_path):
-    path = tmp_path / "cart.json"
-    path.write_text(json.dumps({
-        "coords": ["x", "theta"], "actuated": ["x"],
-        "hamiltonian_terms": {"x_dot**2": 0.55, "theta_dot**2": 0.05,
-                              "theta_dot*x_dot*cos(theta)": 0.1, "cos(theta)": -0.981}}))
-    return path
-
 
 def identify(csv, *extra):
     return run_cli("identify", csv, "--coords", "x,theta", "--features", FEATURES, "--degree", "3",
