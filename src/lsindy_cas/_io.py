@@ -2,6 +2,7 @@
 
 * :func:`check_writable` — a file the command will write: its folder exists and is writable, and the
   name is not a folder.  Commands call it before any heavy work, so a typo never costs a fit.
+* :func:`existing_dir` — a folder that must already exist and be writable.
 * :func:`output_dir` — a folder the user named for several outputs: created if missing (that is
   what naming it asks for), but never its missing parents.
 * :func:`atomic_write` — a file the user already has is replaced whole or not at all, and the new
@@ -15,7 +16,7 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["atomic_write", "check_writable", "output_dir"]
+__all__ = ["atomic_write", "check_writable", "existing_dir", "output_dir"]
 
 
 def check_writable(path, what: str = "output file") -> Path:
@@ -31,6 +32,14 @@ def check_writable(path, what: str = "output file") -> Path:
     if path.exists() and not os.access(path, os.W_OK):
         raise ValueError(f"{what} {path} exists and is not writable")
     return path
+
+
+def existing_dir(path, what: str = "output directory") -> Path:
+    """A folder that must already exist and be writable (nothing is created)."""
+    path = Path(path)
+    if not path.is_dir():
+        raise ValueError(f"{what} {path}: no such directory (create it first)")
+    return output_dir(path, what)
 
 
 def output_dir(path, what: str = "output directory") -> Path:

@@ -290,12 +290,8 @@ def _export(args) -> int:
         raise ValueError(f"--dt must be a positive number of seconds, got {args.dt}")
     if args.substeps < 1:
         raise ValueError(f"--substeps must be a positive integer, got {args.substeps}")
-    from pathlib import Path
-    folder = Path(args.c)
-    if not folder.is_dir():
-        raise ValueError(f"--c {folder}: no such directory (create it first)")
-    from ._io import output_dir
-    output_dir(folder, "--c")
+    from ._io import existing_dir
+    folder = existing_dir(args.c, "--c")       # checked before the model is read
     model = LagrangianSINDy.load(args.model)
     paths = export_c(model, folder, dt=args.dt, n_substeps=args.substeps, name=args.name,
                      source=str(args.model))

@@ -47,7 +47,7 @@ arg[0] = x; arg[1] = u; res[0] = xdot;
 ```
 
 Build: `gcc -O2 -c {name}.c` (plain C99, only `math.h`).
-{friction}"""
+"""
 
 
 def _c_name(name: str) -> str:
@@ -80,7 +80,7 @@ def export_c(model, folder, *, dt: float = 0.05, n_substeps: int = 1, name: str 
     """
     import casadi as ca
 
-    from ._io import atomic_write, output_dir
+    from ._io import atomic_write, existing_dir
     from ._validate import check_int, check_real
     from ._version import __version__
     from .control.ocp import rk4_step
@@ -88,10 +88,7 @@ def export_c(model, folder, *, dt: float = 0.05, n_substeps: int = 1, name: str 
     dt = check_real("dt", dt, positive=True)
     n_substeps = check_int("n_substeps", n_substeps, low=1)
     name = _c_name(name)
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise ValueError(f"{folder}: no such directory (create it first)")
-    output_dir(folder)
+    folder = existing_dir(folder, "folder")
     ode = model.ode()
     nx, nu = ode.size1_in(0), ode.size1_in(1)
     x, u = ca.SX.sym("x", nx), ca.SX.sym("u", nu)
@@ -103,22 +100,14 @@ def export_c(model, folder, *, dt: float = 0.05, n_substeps: int = 1, name: str 
     gen.add(step_named)
     written = []
     with tempfile.TemporaryDirectory() as tmp:
-        cwd = os.getcwd()
-        try:
-            os.chdir(tmp)             # CasADi writes into the working directory
-            gen.generate()
-        finally:
-            os.chdir(cwd)
+        gen.generate(tmp + os.sep)
         for fname in (f"{name}.c", f"{name}.h"):
             written.append(atomic_write(folder / fname,
                                         lambda t, f=fname: shutil.copyfile(Path(tmp) / f, t)))
     coords = list(model.coords_)
-    rayleigh = getattr(model, "rayleigh_", None)
     text = _README.format(
         name=name, version=__version__, casadi=ca.__version__, source=source,
         coords=", ".join(coords), state=", ".join(coords + [c + "_dot" for c in coords]),
-        inputs=", ".join("Q_" + c for c in coords), nx=nx, nu=nu, dt=dt, n_sub=n_substeps,
-        friction=("" if rayleigh is None else f"\nThe ODE includes the friction forces −∂R/∂q̇ "
-                  f"of R = {rayleigh}.\n"))
+        inputs=", ".join("Q_" + c for c in coords), nx=nx, nu=nu, dt=dt, n_sub=n_substeps)
     written.append(atomic_write(folder / "README.md", lambda t: Path(t).write_text(text)))
     return written

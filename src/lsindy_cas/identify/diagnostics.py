@@ -85,6 +85,8 @@ class FitRecord:
         The energy's coefficients.
     smoothing : list of Smoothed or None
     trap : ConstantForceTrap or None
+    hold : str or None
+        The input hold of the work integral (None without one).
     """
 
     library: object
@@ -96,6 +98,7 @@ class FitRecord:
     coef: np.ndarray = field(repr=False)
     smoothing: list | None = None
     trap: ConstantForceTrap | None = None
+    hold: str | None = None
 
     @property
     def search(self):
@@ -290,7 +293,7 @@ def _independent(fields) -> bool:
 def diagnose(fit: FitRecord) -> Diagnostics:
     """Build the report on a fit (:class:`FitRecord`, made by ``LagrangianSINDy.fit``)."""
     lib, sel, bal = fit.library, fit.selection, fit.balance
-    d = Diagnostics()
+    d = Diagnostics(hold=fit.hold)
     S = fit.support
     step = next((s for s in sel.steps if s.k == sel.k), sel.steps[-1])
     d.held_out_error = float(step.cv)

@@ -145,7 +145,7 @@ class LagrangianSINDy:
         if self._form(trajectories) == "derivative":
             return derivative_form(self.library, trajectories, passive=passive)
         return integral_form(self.library, trajectories, window=self.window, passive=passive,
-                             weights=weights, hold=self._hold or "auto")
+                             weights=weights, hold=self.hold_ or "auto")
 
     def _prepare(self, trajectories):
         """States for the balance and their noise variance per row (integral form), or as given."""
@@ -177,15 +177,18 @@ class LagrangianSINDy:
         """
         self._validate()
         coords = self.library.coords.names
-        holds = self._holds(_check_trajectories(trajectories, coords))
+        runs = _check_trajectories(trajectories, coords)
+        holds = self._holds(runs)
         if len(holds) == 1:
-            return self._fit(trajectories, scale_trajectories, passive, progress, holds[0])
+            return self._fit(runs, scale_trajectories, passive, progress, holds[0])
         # A force that changes at most samples: a smooth force sampled, or a held one changing every
-        # sample.  The data decide: the wrong work integral leaves a systematic residual.
+        # sample.  The data decide: the wrong work integral leaves a systematic residual.  The
+        # smoothing does not depend on the hold, so both trials share it.
+        prepared = self._prepare(runs)
         trials = []
         for hold in holds:
             trial = copy.copy(self)
-            trial._fit(trajectories, scale_trajectories, passive, progress, hold)
+            trial._fit(runs, scale_trajectories, passive, progress, hold, prepared)
             trials.append(trial)
         best = min(trials, key=lambda m: m.diagnostics_.held_out_error)
         self.__dict__.update(best.__dict__)
@@ -204,8 +207,8 @@ class LagrangianSINDy:
             return ["zoh"]              # constant, or changing at few samples: a held input
         return ["zoh", "smooth"]
 
-    def _fit(self, trajectories, scale_trajectories, passive, progress, hold):
-        self._hold = hold
+    def _fit(self, trajectories, scale_trajectories, passive, progress, hold, prepared=None):
+        """One fit with a given input hold; ``prepared`` = ``_prepare(trajectories)`` if done."""
         self.hold_ = hold
         forced = self._validate()
         lib = self.library
@@ -215,7 +218,8 @@ class LagrangianSINDy:
         scale_list = (None if scale_trajectories is None else
                       _check_trajectories(scale_trajectories, coords, "scale_trajectories"))
         # 2. states: smoothed (integral form) with their noise variance
-        states, state_var, smoothing = self._prepare(trajectories)
+        states, state_var, smoothing = (self._prepare(trajectories) if prepared is None
+                                         else prepared)
         # 3. energy balance (and the passive scheme's scale record)
         bal = self._balance(states, passive=passive)
         scale_system = self._scale_system(scale_list) if bal.passive else None
@@ -236,7 +240,7 @@ class LagrangianSINDy:
                                                       scale_system, excluded, row_gradients(bal))
         # 7. the model and its report
         record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef,
-                           smoothing, trap)
+                           smoothing, trap, hold)
         self.smoothing_, self.trap_ = smoothing, trap
         self.selection_ = sel
         self.search_ = sel.search
@@ -247,7 +251,6 @@ class LagrangianSINDy:
                                                    trajectories + (scale_list or []))]
         self._set_coefficients(coef, X=bal.X)
         self.diagnostics_ = diagnose(record)
-        self.diagnostics_.hold = hold
         return self
 
     def _scale_system(self, scale_list):
