@@ -2,14 +2,11 @@
 from __future__ import annotations
 
 import copy
-import json
 from pathlib import Path
 
 import numpy as np
 import sympy as sp
 
-from .._version import __version__
-from .._io import atomic_write
 from .._validate import check_choice, check_int
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
@@ -331,74 +328,20 @@ class LagrangianSINDy:
 
     # ------------------------------------------------------------------ persistence
     def to_dict(self) -> dict:
-        self._check_fitted()
-        out = {
-            "coords": self.coords_,
-            "hamiltonian": str(self.hamiltonian_),
-            "lagrangian": str(self.lagrangian_),
-            "hamiltonian_terms": self.terms("hamiltonian"),
-            "lagrangian_terms": self.terms("lagrangian"),
-            "equations_of_motion": [f"{e.lhs} = {e.rhs}" for e in self.equations_of_motion()],
-            "actuated": list(getattr(self, "actuated_", [])),
-            "library": self.library.to_dict(),
-            "n_terms": int(len(self.support_)),
-            "prior": [str(p) for p in ([self.prior] if isinstance(self.prior, str) else self.prior)],
-            "lsindy_cas_version": __version__,
-        }
-        if getattr(self, "hold_", None) is not None:
-            out["hold"] = self.hold_
-        diag = getattr(self, "diagnostics_", None)
-        diag = diag.to_dict() if diag is not None else getattr(self, "_loaded_diagnostics", None)
-        if diag is not None:           # the report of the fit travels with the model file
-            out["diagnostics"] = diag
-        return out
+        """The model as the DESIGN.md model-file dictionary (see :mod:`.model_file`)."""
+        from .model_file import model_to_dict
+        return model_to_dict(self)
 
     def save(self, path) -> Path:
         """Write the model as JSON (atomically; the DESIGN.md model file)."""
-        text = json.dumps(self.to_dict(), indent=2)
-        return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+        from .model_file import save_model
+        return save_model(self, path)
 
     @classmethod
     def load(cls, path) -> "LagrangianSINDy":
         """Read a model written by ``save`` or ``lsindy identify --json``."""
-        path = Path(path)
-        if not path.is_file():
-            raise ValueError(f"{path}: no such model file")
-        try:
-            d = json.loads(path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"{path}: not a JSON model file ({exc})") from None
-        missing = [k for k in ("coords", "hamiltonian_terms") if k not in d]
-        if missing:
-            raise ValueError(f"{path}: model file lacks {', '.join(missing)}")
-        terms = d["hamiltonian_terms"]
-        lib = Library.from_dict(d["library"]) if "library" in d else Library(d["coords"], list(terms))
-        coef = np.zeros(len(lib))
-        for name, c in terms.items():
-            coef[lib.index(name, what=f"{path}: term")] = float(c)
-        model = cls(lib, n_terms=max(1, len(terms)), prior=d.get("prior", ()))
-        model.actuated_ = list(d.get("actuated", []))
-        model._loaded_diagnostics = d.get("diagnostics")
-        model.hold_ = d.get("hold")
-        model._set_coefficients(coef)
-        _check_kinetic(model, path)
-        return model
-
-
-def _check_kinetic(model, path, n_states: int = 64):
-    """Refuse a model whose mass matrix ∂²L/∂q̇² has a negative eigenvalue at a random state
-    (q ∈ [−π, π], q̇ ∈ [−1, 1]): a negative kinetic energy (e.g. a hand-edited sign) makes the
-    equations of motion meaningless.  Singular points (sin²θ at the pole) are allowed."""
-    M = model._mechanics.mass_matrix()
-    n = len(model.coords_)
-    rng = np.random.default_rng(0)
-    X = np.hstack([rng.uniform(-np.pi, np.pi, (n_states, n)), rng.uniform(-1, 1, (n_states, n))])
-    for x in X:
-        eig = np.linalg.eigvalsh(np.asarray(M(x)))
-        if eig[0] < -1e-9 * max(1.0, abs(eig[-1])):
-            raise ValueError(f"{path}: the kinetic part is not positive definite (mass matrix "
-                             f"eigenvalue {eig[0]:.3g} at state {np.round(x, 3).tolist()}); "
-                             f"check the signs of the velocity terms")
+        from .model_file import load_model
+        return load_model(cls, path)
 
 
 def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:

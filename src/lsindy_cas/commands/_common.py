@@ -1,0 +1,55 @@
+"""What every ``lsindy`` subcommand shares: the parser class, subcommand set-up, list parsing."""
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["Parser", "command", "wrap", "split", "library", "library_arguments", "numbers"]
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (exit code 2)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def wrap(text: str) -> str:
+    import textwrap
+    return textwrap.fill(text, 88)
+
+
+def split(text: str | None) -> list:
+    from ..symbolic.library import _split_top_level
+    return _split_top_level(text) if text else []
+
+
+def library(args):
+    from ..symbolic.library import Library
+    return Library.polynomial(split(args.coords), split(args.features), args.degree)
+
+
+def command(sub, name: str, help: str, description: str, epilog: str):
+    """A subcommand with its one-line help, a described purpose and examples."""
+    return sub.add_parser(name, help=help, description=wrap(description), epilog=epilog,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def library_arguments(parser):
+    parser.add_argument("--coords", required=True, help="coordinate names, comma-separated (x,theta)")
+    parser.add_argument("--features", required=True,
+                        help='feature expressions, comma-separated ("cos(theta),theta_dot,x_dot")')
+    parser.add_argument("--degree", type=int, default=2, help="highest product degree (default 2)")
+
+
+def numbers(text: str, what: str) -> list:
+    """``"pi/2, 0, -1e-3"`` -> floats (sympy syntax per entry, so ``pi/2`` works)."""
+    import sympy as sp
+    out = []
+    for part in split(text):
+        try:
+            out.append(float(sp.sympify(part)))
+        except (sp.SympifyError, SyntaxError, TypeError, ValueError):
+            raise ValueError(f"{what}: {part!r} is not a number") from None
+    if not out:
+        raise ValueError(f"{what} is empty")
+    return out

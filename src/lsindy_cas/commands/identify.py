@@ -1,0 +1,87 @@
+"""``lsindy identify``: trajectory files -> model printout and model file."""
+from __future__ import annotations
+
+from ._common import command, library, library_arguments, split
+
+IDENTIFY_EXAMPLE = """example:
+  lsindy identify run1.csv run2.csv --coords x,theta \\
+      --features "cos(theta),sin(theta),theta_dot,x,x_dot" --degree 3 \\
+      --terms 4 --prior "theta_dot**2,cos(theta)" --json model.json
+
+Trajectory files: CSV (header row) or NPZ with columns t, <q>, <q>_dot, optional Q_<q>
+(generalized force; missing = 0) and optional <q>_ddot (exact accelerations)."""
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from .._io import check_writable
+    from ..data.trajectory import load_trajectories
+    from ..identify.estimator import LagrangianSINDy
+
+    # Every option is checked before the data are read or the search starts.
+    for flag, value in (("--terms", args.terms), ("--max-terms", args.max_terms),
+                        ("--window", args.window)):
+        if value is not None and value < 1:
+            raise ValueError(f"{flag} must be a positive integer, got {value}")
+    if args.json:
+        check_writable(args.json, "--json")
+    lib = library(args)
+    coords = lib.coords.names
+    for flag, value in (("--terms", args.terms), ("--max-terms", args.max_terms)):
+        if value is not None and value > len(lib):
+            raise ValueError(f"{flag} {value} is larger than the library size ({len(lib)} terms)")
+    trajs = load_trajectories(args.trajectories, coords)
+    scale = load_trajectories(args.scale, coords) if args.scale else None
+    passive = args.passive or all(not np.any(tr.power) for tr in trajs)
+    if passive and scale is None:
+        raise ValueError("the training data are passive (no power fed in), which fixes the energy "
+                         "only up to a factor: add --scale TRAJ..., a short actuated record "
+                         "(paper eq. 8)")
+    model = LagrangianSINDy(lib, n_terms=args.terms, prior=split(args.prior), form=args.form,
+                            window=args.window, smoothing=args.smoothing,
+                            max_terms=args.max_terms, hold=args.hold)
+    from ..progress import ProgressBar
+    with ProgressBar("searching supports", unit="supports") as bar:
+        model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
+    print(model)
+    print()
+    print(model.diagnostics_)
+    if args.json:
+        model.save(args.json)
+        print(f"model written to {args.json}")
+    return 0
+
+
+def add_to(sub) -> None:
+    """Add the subcommand to the ``lsindy`` parser's subparsers."""
+    ident = command(sub, "identify", "identify H, L and the equations of motion from files",
+                   "Identify the total energy H, the Lagrangian L and the "
+                           "equations of motion of a mechanical system from trajectory files, print "
+                           "them with a diagnostics report and optionally save the model (JSON).",
+                   IDENTIFY_EXAMPLE)
+    ident.add_argument("trajectories", nargs="+", metavar="TRAJ", help="trajectory files (CSV/NPZ)")
+    library_arguments(ident)
+    ident.add_argument("--terms", type=int, default=None,
+                       help="number of terms k in the energy (default: chosen from the data on "
+                       "held-out runs or stretches)")
+    ident.add_argument("--prior", default="", help='terms forced in ("theta_dot**2,cos(theta)")')
+    ident.add_argument("--passive", action="store_true",
+                       help="the training data are unforced: use the null-space scheme")
+    ident.add_argument("--scale", nargs="+", metavar="TRAJ", help="short actuated record(s) for the scale")
+    ident.add_argument("--form", choices=["auto", "derivative", "integral"], default="auto",
+                       help="energy-balance form (auto: derivative if files carry <q>_ddot)")
+    ident.add_argument("--smoothing", choices=["auto", "none"], default="auto",
+                       help="integral form: smooth the measured states with a strength chosen from "
+                       "the data (auto, default) or use them as measured (none)")
+    ident.add_argument("--hold", choices=["auto", "zoh", "smooth"], default="auto",
+                       help="what a Q_<q> sample means: zoh = held over [t_i, t_i+1) (a digital "
+                       "controller's output), smooth = a smoothly varying force sampled; auto "
+                       "(default) decides from the data")
+    ident.add_argument("--max-terms", type=int, default=None, metavar="K",
+                       help="automatic k: the largest k tried")
+    ident.add_argument("--window", type=int, default=None, metavar="N",
+                       help="integral form: windows of N samples (default: every window of every run)")
+    ident.add_argument("--json", metavar="OUT.json",
+                       help="write the model file here (its folder must exist)")
+    ident.set_defaults(func=run)
