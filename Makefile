@@ -11,7 +11,7 @@ BENCH  ?= bench-results
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,bench]'
+	$(PY) -m pip install --quiet -e '.[test,bench,mujoco]'
 	touch $(STAMP)
 
 demo: $(STAMP)

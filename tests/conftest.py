@@ -14,7 +14,8 @@ from lsindy_cas.paper.table1 import PAPER_SETUPS
 # Optional dependencies a test may need: mark it ``@pytest.mark.needs("pysindy")`` and it is
 # skipped, with the install hint as the reason, when that package cannot be imported.  Per test,
 # so everything else in the file still runs without the extra.
-OPTIONAL = {"pysindy": "pip install 'lsindy_cas[bench]'"}
+OPTIONAL = {"pysindy": "pip install 'lsindy_cas[bench]'",
+            "mujoco": "pip install 'lsindy_cas[mujoco]'"}
 
 
 @functools.lru_cache(maxsize=None)

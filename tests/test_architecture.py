@@ -24,6 +24,7 @@ FORBIDDEN = {
     "symbolic": {"identify", "mechanics", "control", "paper"},
     "data": {"identify", "mechanics", "control", "paper"},
     "mechanics": {"identify", "control", "paper"},
+    "plants": {"identify", "mechanics", "control", "paper"},   # judges know only the data format
     "commands": set(),                           # the CLI's subcommands may use every layer
 }
 
