@@ -60,6 +60,10 @@ class EnergyBalance:
     centred : bool
         Rows are deviations from their trajectory's weighted mean (the all-windows integral form);
         then row i belongs to sample i, so ``X``, ``D`` and the rows line up.
+    work_rules : list of str, optional
+        Integral form, per trajectory: how its work integral was computed — "increments"
+        (held force × position increments), "quadrature" (held force × trapezoid of q̇),
+        "spline" (smooth force) or "none" (no power) — which the noise model needs.
     """
 
     A: np.ndarray
@@ -70,6 +74,7 @@ class EnergyBalance:
     groups: np.ndarray | None = None
     weights: np.ndarray | None = None
     centred: bool = False
+    work_rules: list | None = None
 
     @property
     def passive(self) -> bool:
@@ -112,37 +117,70 @@ def _resolve_hold(tr: Trajectory, hold: str) -> str:
     return "zoh" if constant or force_switches(tr.Q).size else "smooth"
 
 
-def cumulative_work(tr: Trajectory, hold: str = "auto") -> np.ndarray:
-    """W(t_i) = ∫_{t_0}^{t_i} Q·q̇ dt: (n_samples,) in J, by 4th-order quadrature.
+def cumulative_work(tr: Trajectory, hold: str = "auto", noise=None) -> np.ndarray:
+    """W(t_i) = ∫_{t_0}^{t_i} Q·q̇ dt: (n_samples,) in J.
 
     Parameters
     ----------
     tr : Trajectory
     hold : {"auto", "zoh", "smooth"}
-        "zoh": Q_i acts over [t_i, t_{i+1}) (sample-and-hold); "smooth": Q varies smoothly and P is
-        integrated as a cubic spline; "auto": "zoh" for constant or piecewise-constant forces.
+        "zoh": Q_i acts over [t_i, t_{i+1}) (sample-and-hold); "smooth": Q varies smoothly and
+        P = Q·q̇ is integrated as a cubic spline (4th order); "auto": "zoh" for constant or
+        piecewise-constant forces.
+    noise : array (2n,), optional
+        Standard deviation of the noise left in the state columns [q, q̇].  Held forces: the work
+        over [t_i, t_{i+1}) is Q_i·∫q̇ dt, and ∫q̇ dt has two estimates — the position increment
+        q_{i+1} − q_i (exact, no quadrature error, noise √2 σ_q) or the velocities' quadrature
+        (trapezoid within an interval, O(dt³ q⃛) error, noise ~dt σ_q̇ /√2).  The one with the
+        smaller expected error is used; without ``noise`` the data are taken as exact
+        (position increments).
     """
-    from scipy.interpolate import CubicSpline   # lazy: scipy's import costs ~0.5 s per CLI call
+    return _work(tr, hold, noise)[0]
 
+
+def _work(tr: Trajectory, hold: str = "auto", noise=None):
+    """(W, rule): :func:`cumulative_work` and the rule it used (see ``EnergyBalance.work_rules``)."""
     P = tr.power
     if not np.any(P):
-        return np.zeros_like(P)
+        return np.zeros_like(P), "none"
     if _resolve_hold(tr, hold) == "smooth":
-        return CubicSpline(tr.t, P).antiderivative()(tr.t)
-    # held force: W increments Q_i · ∫_{t_i}^{t_{i+1}} q̇ dt, q̇ splined between switches
-    inc = np.empty(tr.n_samples - 1)
-    cuts = np.r_[0, force_switches(tr.Q), tr.n_samples - 1]
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        if b <= a:
-            continue
-        t, qd = tr.t[a:b + 1], tr.qd[a:b + 1]
-        if b - a >= 2:
-            F = CubicSpline(t, qd, axis=0).antiderivative()(t)
-            dq = np.diff(F, axis=0)
-        else:
-            dq = 0.5 * (qd[1:] + qd[:-1]) * np.diff(t)[:, None]
-        inc[a:b] = np.einsum("ij,ij->i", tr.Q[a:b], dq)
-    return np.r_[0.0, np.cumsum(inc)]
+        from scipy.interpolate import CubicSpline   # lazy: scipy's import costs ~0.5 s per CLI call
+        return CubicSpline(tr.t, P).antiderivative()(tr.t), "spline"
+    inc, rule = held_increments(tr, noise)
+    return np.r_[0.0, np.cumsum(inc)], rule
+
+
+def held_increments(tr: Trajectory, noise=None):
+    """Work of a held force over each sample interval, Q_i·∫_{t_i}^{t_{i+1}} q̇ dt.
+
+    See :func:`cumulative_work` for the choice between position increments and quadrature.
+
+    Returns
+    -------
+    increments : array (n_samples − 1,)
+    rule : {"increments", "quadrature"}
+    """
+    Q = tr.Q[:-1]
+    dq = np.diff(tr.q, axis=0)
+    if noise is None:
+        return np.einsum("ij,ij->i", Q, dq), "increments"
+    noise = np.asarray(noise, float)
+    n = len(tr.coords)
+    h = np.diff(tr.t)[:, None]
+    trap = 0.5 * (tr.qd[1:] + tr.qd[:-1]) * h
+    # trapezoid error per interval ≈ h³/12 · q⃛, q⃛ from second differences of q̇
+    jerk = np.zeros_like(tr.qd)
+    if tr.n_samples >= 3:
+        hm = np.diff(tr.t)
+        slope = np.diff(tr.qd, axis=0) / hm[:, None]
+        jerk[1:-1] = 2 * np.diff(slope, axis=0) / (hm[1:] + hm[:-1])[:, None]
+        jerk[0], jerk[-1] = jerk[1], jerk[-2]
+    quad = h ** 3 / 12 * 0.5 * (np.abs(jerk[1:]) + np.abs(jerk[:-1]))
+    var_dq = np.sum(Q ** 2 * 2 * noise[:n] ** 2)
+    var_trap = np.sum(Q ** 2 * (0.5 * h ** 2 * noise[n:] ** 2 + quad ** 2))
+    if var_dq <= var_trap:
+        return np.einsum("ij,ij->i", Q, dq), "increments"
+    return np.einsum("ij,ij->i", Q, trap), "quadrature"
 
 
 def _weighted_centre(M: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -150,7 +188,8 @@ def _weighted_centre(M: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def integral_form(library: Library, trajectories, window: int | None = None, stride: int = 1,
-                  passive: bool | None = None, weights=None, hold: str = "auto") -> EnergyBalance:
+                  passive: bool | None = None, weights=None, hold: str = "auto",
+                  noise=None) -> EnergyBalance:
     """The integral (weak) energy balance: no derivatives of the data.
 
     Parameters
@@ -169,6 +208,9 @@ def integral_form(library: Library, trajectories, window: int | None = None, str
         All-windows form only: per-sample weights (e.g. inverse noise variance of the energy).
     hold : {"auto", "zoh", "smooth"}
         How the forces act between samples (see :func:`cumulative_work`).
+    noise : list of arrays (2n,), optional
+        Per trajectory, the standard deviation of the noise left in each state column (see
+        :func:`cumulative_work`); None: the states are taken as exact.
 
     Returns
     -------
@@ -183,10 +225,11 @@ def integral_form(library: Library, trajectories, window: int | None = None, str
     if weights is not None and len(weights) != len(trajectories):
         raise ValueError(f"weights must hold one array per trajectory ({len(trajectories)}), "
                          f"got {len(weights)}")
-    rows, rhs, wts, sizes = [], [], [], []
+    rows, rhs, wts, sizes, rules = [], [], [], [], []
     for k, tr in enumerate(trajectories):
         th = library.theta(tr.X)
-        W = cumulative_work(tr, hold)
+        W, rule = _work(tr, hold, None if noise is None else noise[k])
+        rules.append(rule)
         if window is None:
             w = np.ones(tr.n_samples) if weights is None else np.asarray(weights[k], float)
             if w.shape != (tr.n_samples,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
@@ -208,4 +251,4 @@ def integral_form(library: Library, trajectories, window: int | None = None, str
     return EnergyBalance(np.vstack(rows), None if passive else np.concatenate(rhs), D, X, "integral",
                          groups=_groups(trajectories, sizes),
                          weights=np.concatenate(wts) if window is None else None,
-                         centred=window is None)
+                         centred=window is None, work_rules=rules)

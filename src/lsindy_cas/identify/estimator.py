@@ -138,11 +138,14 @@ class LagrangianSINDy:
             return "derivative" if all(tr.qdd is not None for tr in trajectories) else "integral"
         return self.form
 
-    def _balance(self, trajectories, passive=None, weights=None):
+    def _balance(self, trajectories, passive=None, weights=None, noise=None):
+        """The energy balance of ``trajectories``; ``noise``: per run, the noise left in each
+        state column (picks the held-force work rule, see ``balance.cumulative_work``)."""
         if self._form(trajectories) == "derivative":
             return derivative_form(self.library, trajectories, passive=passive)
         return integral_form(self.library, trajectories, window=self.window, passive=passive,
-                             weights=weights, hold=self.hold_ or "auto")
+                             weights=weights, hold=self.hold_ or "auto",
+                             noise=noise)
 
     def _prepare(self, trajectories):
         """States for the balance and their noise variance per row (integral form), or as given."""
@@ -152,9 +155,20 @@ class LagrangianSINDy:
         states = [s.trajectory for s in smoothed] if self.smoothing == "auto" else trajectories
         # One variance per column and run: the per-sample ones (larger at the ends) were measured
         # to worsen the coefficients on the paper's 1 s runs (median error 6 % → 8 % at σ = 1e-3).
-        var = np.vstack([np.broadcast_to((s.error ** 2).mean(axis=0) if self.smoothing == "auto"
-                                         else s.noise ** 2, s.error.shape) for s in smoothed])
+        var = np.vstack([np.broadcast_to(v, s.error.shape)
+                         for v, s in zip(self._run_variance(smoothed), smoothed)])
         return states, var, smoothed
+
+    def _run_variance(self, smoothed) -> list:
+        """Per run, the noise variance left in each state column (2n,) of the balance's states."""
+        if smoothed is None:
+            return None
+        return [(s.error ** 2).mean(axis=0) if self.smoothing == "auto" else s.noise ** 2
+                for s in smoothed]
+
+    def _run_noise(self, smoothed):
+        var = self._run_variance(smoothed)
+        return None if var is None else [np.sqrt(v) for v in var]
 
     def fit(self, trajectories, scale_trajectories=None, passive=None,
             progress=None) -> "LagrangianSINDy":
@@ -182,14 +196,21 @@ class LagrangianSINDy:
         # sample.  The data decide: the wrong work integral leaves a systematic residual.  The
         # smoothing does not depend on the hold, so both trials share it.
         prepared = self._prepare(runs)
-        trials = []
+        trials, failed = [], {}
         for hold in holds:
             trial = copy.copy(self)
-            trial._fit(runs, scale_trajectories, passive, progress, hold, prepared)
+            try:
+                trial._fit(runs, scale_trajectories, passive, progress, hold, prepared)
+            except ValueError as exc:   # e.g. no admissible model under the wrong work integral
+                failed[hold] = exc
+                continue
             trials.append(trial)
+        if not trials:
+            raise failed[holds[0]]
         best = min(trials, key=lambda m: m.diagnostics_.held_out_error)
         self.__dict__.update(best.__dict__)
         self.hold_errors_ = {m.hold_: m.diagnostics_.held_out_error for m in trials}
+        self.hold_errors_.update({h: float("inf") for h in failed})
         self.diagnostics_.hold_errors = self.hold_errors_
         return self
 
@@ -218,7 +239,8 @@ class LagrangianSINDy:
         states, state_var, smoothing = (self._prepare(trajectories) if prepared is None
                                          else prepared)
         # 3. energy balance (and the passive scheme's scale record)
-        bal = self._balance(states, passive=passive)
+        self._state_noise = self._run_noise(smoothing)
+        bal = self._balance(states, passive=passive, noise=self._state_noise)
         scale_system = self._scale_system(scale_list) if bal.passive else None
         # 4. the rules a candidate must pass
         trap = constant_force_trap(lib, trajectories, forced) if not bal.passive else None
@@ -256,7 +278,8 @@ class LagrangianSINDy:
             raise ValueError("the training data are passive (no power fed in), which fixes the "
                              "energy only up to a factor: pass scale_trajectories, a short "
                              "actuated record (paper eq. 8)")
-        scale = self._balance(self._prepare(scale_list)[0], passive=False)
+        states, _, smoothed = self._prepare(scale_list)
+        scale = self._balance(states, passive=False, noise=self._run_noise(smoothed))
         if not np.any(scale.b):
             raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
         return scale.A, scale.b
@@ -268,7 +291,8 @@ class LagrangianSINDy:
         sizes = np.cumsum([tr.n_samples for tr in states])[:-1]
         for it in range(_REFINE_PASSES):
             w = sample_weights(energy_variance(grads, coef, state_var))
-            bal_w = self._balance(states, passive=passive, weights=np.split(w, sizes))
+            bal_w = self._balance(states, passive=passive, weights=np.split(w, sizes),
+                                  noise=self._state_noise)
             if changed and it < _RESELECT_PASSES:      # re-select on the weighted balance (same k)
                 adm = Admissibility.for_balance(self.library, bal_w, forced, scale_system, excluded)
                 try:

@@ -77,13 +77,32 @@ def noise_model(bal: EnergyBalance, state_var: np.ndarray, smoothed) -> NoiseMod
         tr = sm.raw
         n = tr.n_samples
         ncoord = len(tr.coords)
+        wg = w[bal.groups == g].mean() if bal.groups is not None else 1.0
+        rule = bal.work_rules[g] if bal.work_rules else "quadrature"
+        if rule == "increments":
+            beta += wg * _increment_work_noise(tr.Q, sm.noise[:ncoord])
+            continue
         # random-walk increments Q_j² σ_v² Δt²; a centred walk keeps (m − m²/n) of increment j,
         # m = n − j − 1 the samples after it (weights taken as their mean over the run)
         v = (tr.Q[:-1] ** 2 @ sm.noise[ncoord:] ** 2) * np.diff(tr.t) ** 2
         m = n - np.arange(n - 1) - 1
-        wg = w[bal.groups == g].mean() if bal.groups is not None else 1.0
         beta += wg * float(v @ (m - m ** 2 / n))
     return NoiseModel(N, beta)
+
+
+def _increment_work_noise(Q: np.ndarray, sigma_q: np.ndarray) -> float:
+    """E‖centred W̃ − W‖² when W_i = Σ_{j<i} Q_j·(q_{j+1} − q_j) and q carries white noise σ_q.
+
+    Per coordinate, noise e_m enters W_i with Q_{m−1} at i = m and with a_m = Q_{m−1} − Q_m at
+    every i > m (Q_{−1} = 0): column m of the map is d_m e_m + a_m 1_{i>m}; centring removes its
+    mean, so it contributes ‖v‖² − (Σv)²/n, summed in O(n).
+    """
+    n = Q.shape[0]
+    Qprev = np.vstack([np.zeros((1, Q.shape[1])), Q[:-1]])
+    d, a = Qprev, Qprev - Q
+    after = (n - 1 - np.arange(n))[:, None]
+    col = d ** 2 + a ** 2 * after - (d + a * after) ** 2 / n
+    return float(np.sum(col * sigma_q ** 2))
 
 
 def row_gradients(bal: EnergyBalance) -> np.ndarray:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MujocoPlant", "cart_pendulum", "double_pendulum", "POINT_INERTIA"]
+__all__ = ["MujocoPlant", "ClosedLoop", "cart_pendulum", "double_pendulum", "POINT_INERTIA"]
 
 G = 9.81
 POINT_INERTIA = 1e-10       # kg m²: the "point" masses' rotational inertia (MuJoCo needs > 0)
@@ -243,3 +243,26 @@ def double_pendulum(m1=1.0, m2=1.0, L1=1.0, L2=1.0, g=G, damping1=0.0, damping2=
                        ["theta1", "theta2"], "theta1", to_project=to_project, to_mujoco=to_mujoco,
                        rayleigh=rayleigh, parameters=dict(m1=m1, m2=m2, L1=L1, L2=L2, g=g,
                                                           damping1=damping1, damping2=damping2))
+
+
+class ClosedLoop:
+    """A :class:`MujocoPlant` as the plant of closed-loop episodes (the ``Plant`` interface of
+    :func:`lsindy_cas.paper.swingup.run_episode`): ``step(x, force)`` holds ``force`` for ``dt``
+    from state ``x`` and returns ``n_out`` states over the period, the last at its end.
+
+    The state is set from ``x`` at every step, so MuJoCo integrates exactly the episode's states
+    (its warm-start data are cleared; no contacts are modelled, so nothing else is lost).
+    """
+
+    def __init__(self, plant: MujocoPlant, dt: float, n_out: int = 5):
+        self.plant, self.dt, self.n_out = plant, float(dt), int(n_out)
+        self.coords = list(plant.coords)
+        n_sub = dt / plant.timestep
+        if abs(n_sub - round(n_sub)) > 1e-9 or round(n_sub) % self.n_out:
+            raise ValueError(f"dt ({dt}) must be a multiple of n_out ({n_out}) MuJoCo steps "
+                             f"({plant.timestep} s)")
+
+    def step(self, x, force):
+        self.plant.reset(x)
+        sub = self.dt / self.n_out
+        return np.array([self.plant.step(force, sub) for _ in range(self.n_out)])
