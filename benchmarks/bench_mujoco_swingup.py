@@ -50,6 +50,7 @@ class _Exact:
 
     def __init__(self, system):
         self.system, self.coords_ = system, list(system.coords)
+        self.actuated_ = [system.actuated]
 
     def ode(self):
         return self.system.ode()

@@ -257,6 +257,7 @@ class ClosedLoop:
     def __init__(self, plant: MujocoPlant, dt: float, n_out: int = 5):
         self.plant, self.dt, self.n_out = plant, float(dt), int(n_out)
         self.coords = list(plant.coords)
+        self.input_index = self.coords.index(plant.actuated)
         n_sub = dt / plant.timestep
         if abs(n_sub - round(n_sub)) > 1e-9 or round(n_sub) % self.n_out:
             raise ValueError(f"dt ({dt}) must be a multiple of n_out ({n_out}) MuJoCo steps "
