@@ -9,7 +9,9 @@ IDENTIFY_EXAMPLE = """example:
       --terms 4 --prior "theta_dot**2,cos(theta)" --json model.json
 
 Trajectory files: CSV (header row) or NPZ with columns t, <q>, <q>_dot, optional Q_<q>
-(generalized force; missing = 0) and optional <q>_ddot (exact accelerations)."""
+(generalized force; missing = 0) and optional <q>_ddot (exact accelerations).  t need not be
+evenly spaced.  Positions only (no <q>_dot column at all): the velocities are estimated from the
+positions and the report and model file say so."""
 
 
 def run(args) -> int:

@@ -1,14 +1,17 @@
 """Trajectory data: one continuous run of a mechanical system, with validation and file I/O.
 
 File format (DESIGN.md): CSV with a header row or NPZ with the same keys — ``t`` (s, strictly
-increasing), one column per coordinate ``<q>``, one ``<q>_dot`` per coordinate, optional
-``Q_<q>`` (applied generalized force; missing = 0) and optional ``<q>_ddot`` (exact accelerations).
+increasing, not necessarily evenly spaced), one column per coordinate ``<q>``, one ``<q>_dot`` per
+coordinate, optional ``Q_<q>`` (applied generalized force; missing = 0) and optional ``<q>_ddot``
+(exact accelerations).  Positions only: without any ``<q>_dot`` column the velocities are estimated
+from the positions (:func:`lsindy_cas.data.smoothing.estimate_velocities`) and the trajectory says
+so (``velocities == "estimated"``); a file must have all ``<q>_dot`` columns or none.
 """
 from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -44,8 +47,11 @@ class Trajectory:
     ----------
     t : array (n_samples,)
         Time in seconds, strictly increasing.
-    q, qd : array (n_samples, n_coords)
-        Generalized coordinates and velocities.
+    q : array (n_samples, n_coords)
+        Generalized coordinates.
+    qd : array (n_samples, n_coords) or None
+        Generalized velocities; None: estimated from ``q`` (positions only, see
+        :meth:`from_positions`).
     coords : list of str
         Coordinate names (column order of ``q``).
     Q : array (n_samples, n_coords), optional
@@ -61,6 +67,21 @@ class Trajectory:
     Q: np.ndarray | None = None
     qdd: np.ndarray | None = None
     source: str = "<memory>"
+    #: "measured" (given) or "estimated" (from the positions)
+    velocities: str = field(init=False, default="measured")
+    #: estimated velocities: std of each estimate's error, (n_samples, n_coords); else None
+    qd_error: np.ndarray | None = field(init=False, default=None, repr=False)
+
+    @classmethod
+    def from_positions(cls, t, q, coords, Q=None, source: str = "<memory>") -> "Trajectory":
+        """A run measured by positions only (encoders, motion capture): velocities estimated.
+
+        Same as ``Trajectory(t, q, None, coords, Q)``: q̇ is the derivative of the smoothed
+        positions (:func:`lsindy_cas.data.smoothing.estimate_velocities`), ``velocities`` is
+        ``"estimated"`` and ``qd_error`` holds each estimate's error std, which the fit carries
+        into its noise model.  ``ValueError`` if the run is too short or the positions too coarse.
+        """
+        return cls(t, q, None, coords, Q=Q, source=source)
 
     def __post_init__(self):
         if isinstance(self.coords, str):
@@ -84,8 +105,12 @@ class Trajectory:
         self.t = t
         N = len(t)
         self.q = _as_matrix(self.q, N, n, f"{self.source}: q")
-        self.qd = _as_matrix(self.qd, N, n, f"{self.source}: q_dot")
         self.Q = np.zeros((N, n)) if self.Q is None else _as_matrix(self.Q, N, n, f"{self.source}: Q")
+        if self.qd is None:
+            from .smoothing import estimate_velocities     # lazy: smoothing imports this module
+            est = estimate_velocities(t, self.q, self.Q, source=self.source)
+            self.qd, self.qd_error, self.velocities = est.qd, est.qd_error, "estimated"
+        self.qd = _as_matrix(self.qd, N, n, f"{self.source}: q_dot")
         if self.qdd is not None:
             self.qdd = _as_matrix(self.qdd, N, n, f"{self.source}: q_ddot")
 
@@ -124,16 +149,20 @@ class Trajectory:
             raise ValueError(f"{self.source}: trajectory coordinates {self.coords} do not match "
                              f"the library's {coords}")
         idx = [self.coords.index(c) for c in coords]
-        return Trajectory(self.t, self.q[:, idx], self.qd[:, idx], coords, self.Q[:, idx],
-                          None if self.qdd is None else self.qdd[:, idx], self.source)
+        out = Trajectory(self.t, self.q[:, idx], self.qd[:, idx], coords, self.Q[:, idx],
+                         None if self.qdd is None else self.qdd[:, idx], self.source)
+        out.velocities = self.velocities
+        out.qd_error = None if self.qd_error is None else self.qd_error[:, idx]
+        return out
 
     # ------------------------------------------------------------------ I/O
     def columns(self) -> dict:
         cols = {"t": self.t}
         for i, c in enumerate(self.coords):
             cols[c] = self.q[:, i]
-        for i, c in enumerate(self.coords):
-            cols[c + "_dot"] = self.qd[:, i]
+        if self.velocities == "measured":     # estimated ones are re-estimated on loading
+            for i, c in enumerate(self.coords):
+                cols[c + "_dot"] = self.qd[:, i]
         for i, c in enumerate(self.coords):
             cols["Q_" + c] = self.Q[:, i]
         if self.qdd is not None:
@@ -162,7 +191,9 @@ class Trajectory:
     def load(cls, path, coords=None) -> "Trajectory":
         """Read a CSV/NPZ trajectory; ``coords`` (names) picks and orders the coordinates.
 
-        Without ``coords`` the coordinates are the columns that have a matching ``<q>_dot``.
+        Without ``coords`` the coordinates are the columns that have a matching ``<q>_dot`` (a
+        file without any ``<q>_dot`` column: every column but ``t``, ``Q_<q>``, ``<q>_ddot``).
+        Without ``<q>_dot`` columns the velocities are estimated (:meth:`from_positions`).
         """
         path = Path(path)
         src = str(path)
@@ -171,9 +202,10 @@ class Trajectory:
         cols = _read_columns(path)
         if "t" not in cols:
             raise ValueError(f"{src}: missing column 't'")
+        positions_only = not any(k.endswith("_dot") and not k.endswith("_ddot") for k in cols)
         if coords is None:
             coords = [k for k in cols if k != "t" and not k.startswith("Q_")
-                      and not k.endswith("_dot") and k + "_dot" in cols]
+                      and not k.endswith(("_dot", "_ddot")) and (positions_only or k + "_dot" in cols)]
             if not coords:
                 raise ValueError(f"{src}: no coordinate columns (need '<q>' and '<q>_dot' pairs)")
         coords = [coords] if isinstance(coords, str) else list(coords)
@@ -184,8 +216,14 @@ class Trajectory:
                              f"named ({', '.join(coords)}); an unmodelled coordinate's motion "
                              f"carries energy, so name every coordinate (e.g. --coords "
                              f"{','.join(coords + others)}) or drop those columns from the file")
+        have = [c for c in coords if c + "_dot" in cols]
+        if have and len(have) < len(coords):
+            lack = [c + "_dot" for c in coords if c + "_dot" not in cols]
+            raise ValueError(f"{src}: has {', '.join(c + '_dot' for c in have)} but not "
+                             f"{', '.join(lack)}; give every velocity column or none (positions "
+                             f"only: velocities are then estimated from the positions)")
         for c in coords:
-            for need in (c, c + "_dot"):
+            for need in (c,) if positions_only else (c, c + "_dot"):
                 if need not in cols:
                     raise ValueError(f"{src}: missing column {need!r} for coordinate {c!r} "
                                      f"(columns: {', '.join(cols)})")
@@ -198,8 +236,8 @@ class Trajectory:
                 return None
             return np.column_stack([cols.get(n, zeros) for n in names])
 
-        return cls(cols["t"], stack("{}"), stack("{}_dot"), coords, Q=stack("Q_{}", missing_is_zero=True),
-                   qdd=stack("{}_ddot"), source=src)
+        return cls(cols["t"], stack("{}"), None if positions_only else stack("{}_dot"), coords,
+                   Q=stack("Q_{}", missing_is_zero=True), qdd=stack("{}_ddot"), source=src)
 
 
 def _read_columns(path: Path) -> dict:

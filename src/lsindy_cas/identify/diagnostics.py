@@ -140,6 +140,8 @@ class Diagnostics:
         The input hold the work integral used ("zoh", "smooth"; None without a work integral).
     hold_errors : dict
         When the hold was decided from the data: held-out error of the model under each hold.
+    velocities : str
+        "measured", or "estimated" from the positions (positions-only data), or "mixed".
     """
 
     near_ties: list = field(default_factory=list)
@@ -155,6 +157,7 @@ class Diagnostics:
     warnings: list = field(default_factory=list)
     hold: str | None = None
     hold_errors: dict = field(default_factory=dict)
+    velocities: str = "measured"
 
     @property
     def ok(self) -> bool:
@@ -170,7 +173,7 @@ class Diagnostics:
                            for k, e, c in self.k_path],
                 "k_automatic": self.k_automatic, "noise": self.noise,
                 "conserved": self.conserved, "traps": self.traps, "warnings": self.warnings,
-                "hold": self.hold, "hold_errors": self.hold_errors}
+                "hold": self.hold, "hold_errors": self.hold_errors, "velocities": self.velocities}
 
     def __str__(self) -> str:
         lines = ["diagnostics:"]
@@ -189,6 +192,9 @@ class Diagnostics:
                 f"{h} {e:.1e}" for h, e in self.hold_errors.items()) if self.hold_errors
                 else "held input" if self.hold == "zoh" else "smooth input")
             lines.append(f"  input hold of the work integral: {self.hold} ({how})")
+        if self.velocities != "measured":
+            lines.append(f"  velocities: {self.velocities} (estimated = the smoother's derivative "
+                         "of the positions; its error is in the noise model)")
         lines.append("  undetermined directions on the support (near-null space): "
                      f"{self.null_dim}")
         if self.noise:

@@ -98,6 +98,8 @@ class LagrangianSINDy:
     diagnostics_ : Diagnostics    near ties, null space, traps, warnings (print it)
     hold_ : str or None           the input hold used by the work integral ("zoh"/"smooth"; None
                                   when no work integral was needed)
+    velocities_ : str             "measured", "estimated" (positions only: q̇ from the smoothed
+                                  positions, its error carried into the noise model) or "mixed"
     """
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
@@ -268,8 +270,11 @@ class LagrangianSINDy:
         self.form_ = bal.form
         self.actuated_ = [c for c in coords if any(c in tr.actuated for tr in
                                                    trajectories + (scale_list or []))]
+        kinds = {tr.velocities for tr in trajectories + (scale_list or [])}
+        self.velocities_ = kinds.pop() if len(kinds) == 1 else "mixed"
         self._set_coefficients(coef, X=bal.X)
         self.diagnostics_ = diagnose(record)
+        self.diagnostics_.velocities = self.velocities_
         return self
 
     def _scale_system(self, scale_list):

@@ -37,6 +37,7 @@ def model_to_dict(model) -> dict:
     }
     if getattr(model, "hold_", None) is not None:
         out["hold"] = model.hold_
+    out["velocities"] = getattr(model, "velocities_", "measured")   # or "estimated"/"mixed"
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -71,6 +72,7 @@ def load_model(cls, path):
     model.actuated_ = list(d.get("actuated", []))
     model._loaded_diagnostics = d.get("diagnostics")
     model.hold_ = d.get("hold")
+    model.velocities_ = d.get("velocities", "measured")     # files before positions-only: measured
     model._set_coefficients(coef)
     check_kinetic(model, path)
     return model
