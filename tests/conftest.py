@@ -15,7 +15,8 @@ from lsindy_cas.paper.table1 import PAPER_SETUPS
 # skipped, with the install hint as the reason, when that package cannot be imported.  Per test,
 # so everything else in the file still runs without the extra.
 OPTIONAL = {"pysindy": "pip install 'lsindy_cas[bench]'",
-            "mujoco": "pip install 'lsindy_cas[mujoco]'"}
+            "mujoco": "pip install 'lsindy_cas[mujoco]'",
+            "distributed": "pip install 'lsindy_cas[dask]'"}
 
 
 @functools.lru_cache(maxsize=None)

@@ -28,6 +28,10 @@ def run(args) -> int:
             raise ValueError(f"{flag} must be a positive integer, got {value}")
     if args.json:
         check_writable(args.json, "--json")
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be a positive integer, got {args.workers}")
+    if args.workers is not None and args.scheduler != "local":
+        raise ValueError("--workers sets the size of a local cluster: use it with --scheduler local")
     lib = library(args)
     coords = lib.coords.names
     for flag, value in (("--terms", args.terms), ("--max-terms", args.max_terms)):
@@ -40,12 +44,22 @@ def run(args) -> int:
         raise ValueError("the training data are passive (no power fed in), which fixes the energy "
                          "only up to a factor: add --scale TRAJ..., a short actuated record "
                          "(paper eq. 8)")
+    client = None
+    if args.scheduler:            # an unreachable address is one line on stderr, after a timeout
+        from ..identify.distributed import connect
+        try:
+            client = connect(args.scheduler, args.workers)
+        except ImportError as exc:
+            raise ValueError(f"--scheduler: {exc}") from None
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=split(args.prior), form=args.form,
                             window=args.window, smoothing=args.smoothing,
                             max_terms=args.max_terms, hold=args.hold)
     from ..progress import ProgressBar
     with ProgressBar("searching supports", unit="supports") as bar:
-        model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
+        model.fit(trajs, scale, passive=True if args.passive else None, progress=bar,
+                  client=client)
+    if client is not None:
+        client.close()
     print(model)
     print()
     print(model.diagnostics_)
@@ -84,6 +98,12 @@ def add_to(sub) -> None:
                        help="automatic k: the largest k tried")
     ident.add_argument("--window", type=int, default=None, metavar="N",
                        help="integral form: windows of N samples (default: every window of every run)")
+    ident.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="score the supports on a Dask cluster: 'local' (a LocalCluster on this "
+                       "machine) or a running scheduler's address, tcp://host:8786 (needs the "
+                       "optional extra dask[distributed]; the same answer as without)")
+    ident.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="with --scheduler local: number of worker processes (default: cores)")
     ident.add_argument("--json", metavar="OUT.json",
                        help="write the model file here (its folder must exist)")
     ident.set_defaults(func=run)

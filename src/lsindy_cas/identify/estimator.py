@@ -173,7 +173,7 @@ class LagrangianSINDy:
         return None if var is None else [np.sqrt(v) for v in var]
 
     def fit(self, trajectories, scale_trajectories=None, passive=None,
-            progress=None) -> "LagrangianSINDy":
+            progress=None, client=None) -> "LagrangianSINDy":
         """Identify the energy, Lagrangian and equations of motion.
 
         Parameters
@@ -187,7 +187,14 @@ class LagrangianSINDy:
             training data carry no power.
         progress : callable ``(n_done, n_total)``, optional
             Progress of the support search (e.g. :class:`lsindy_cas.progress.ProgressBar`).
+        client : dask.distributed.Client, optional
+            Score the supports on this Dask cluster (:mod:`lsindy_cas.identify.distributed`;
+            the same answer as in process).
         """
+        if client is not None:
+            from .distributed import using
+            with using(client):
+                return self.fit(trajectories, scale_trajectories, passive, progress)
         self._validate()
         coords = self.library.coords.names
         runs = _check_trajectories(trajectories, coords)

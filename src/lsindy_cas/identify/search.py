@@ -308,14 +308,33 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
     -------
     supports : int array (n, k); scores : array (n,); degenerate : bool array (n,)
     """
+    from .distributed import current
+    client = current()
+    if client is not None:            # a Dask cluster set by distributed.using: same answer
+        from .distributed import score_all_distributed
+        return score_all_distributed(client, A, b, k, forced, D, progress)
     p = A.shape[1]
     forced = sorted(set(int(j) for j in forced))
     free = np.array([j for j in range(p) if j not in set(forced)], dtype=np.int64)
     if b is not None:
         An, _ = normalise_columns(A)
-        supports, scores, pivots = tree_scores(An.T @ An, An.T @ b, float(b @ b), forced, free, k,
-                                               progress)
-        return supports, scores, pivots < DEGENERACY_TOL
+        G, c, bb = An.T @ An, An.T @ b, float(b @ b)
+        if k == len(forced):
+            supports, scores, pivots = tree_scores(G, c, bb, forced, free, k, progress)
+            return supports, scores, pivots < DEGENERACY_TOL
+        # subtree by subtree (supports whose smallest free column is free[i]), as the Dask
+        # workers do (identify/distributed.py): the same numbers bit for bit in both
+        from .distributed import subtree_scores, subtree_supports
+        supports = subtree_supports(forced, free, k)
+        scores, pivots, done = [], [], 0
+        for i in range(len(free)):
+            sc, pv = subtree_scores(G, c, bb, forced, free, k, [i])
+            scores.append(sc)
+            pivots.append(pv)
+            done += len(sc)
+            if progress is not None and len(sc):
+                progress(done, len(supports))
+        return supports, np.concatenate(scores), np.concatenate(pivots) < DEGENERACY_TOL
     combos = combinations(len(free), k - len(forced))
     supports = np.hstack([np.broadcast_to(np.array(forced, dtype=np.int64), (len(combos), len(forced))),
                           free[combos]])

@@ -1,0 +1,176 @@
+"""The exhaustive support search on a Dask cluster (optional extra ``dask[distributed]``).
+
+The support tree of :mod:`lsindy_cas.identify.subset_tree` splits into independent subtrees by the
+first free column of a support: subtree i holds every support whose smallest free column is
+``free[i]`` — the tree of ``forced + [free[i]]`` over ``free[i+1:]``.  Each task scores a group of
+subtrees (groups balanced by their number of supports) on the normalised Gram matrix, which is
+scattered to the workers once; the driver concatenates the groups in order, so the supports, their
+order and their scores are those of the single-process search (the same arithmetic in the same
+order), and the best-first visit that follows runs on the driver unchanged.  Passive data (scored
+by the smallest eigenvalue per support) are split into chunks of supports the same way.
+
+Use it with ``LagrangianSINDy(..., client=...)`` or ``lsindy identify --scheduler ADDRESS|local``;
+in code, :func:`using` makes a client the current one for the searches inside the block.
+
+Scaling: the Gram matrix is p² floats (209 terms: 350 kB) whatever the number of samples, so a task
+costs its share of the supports and nothing per sample; results travel back as (n, k) int
+supports + 2 floats per support (~70 B per support for k = 6), which bounds the useful problem
+size by the driver's memory, not the workers'.  With N workers the scoring time divides by ~N
+once each task runs well above the per-task overhead (measured in ``benchmarks/bench_dask.py``).
+"""
+from __future__ import annotations
+
+import contextvars
+from contextlib import contextmanager
+from math import comb
+
+import numpy as np
+
+__all__ = ["connect", "using", "current", "score_all_distributed"]
+
+_CLIENT = contextvars.ContextVar("lsindy_dask_client", default=None)
+TASKS_PER_WORKER = 4          # subtree groups per worker: enough to balance, few to keep overhead low
+
+
+def _distributed():
+    try:
+        import distributed
+    except ImportError as exc:
+        raise ImportError("parallel search needs the optional extra 'dask[distributed]' "
+                          "(pip install 'lsindy_cas[dask]')") from exc
+    return distributed
+
+
+def connect(scheduler: str, n_workers: int | None = None, timeout: float = 5.0):
+    """A Dask client: ``"local"`` starts a ``LocalCluster`` (``n_workers`` processes, one thread
+    each); otherwise ``scheduler`` is the address of a running scheduler (``tcp://host:8786``).
+
+    Raises
+    ------
+    ValueError
+        If the address is not of the form ``tcp://host:port`` / ``local``, or nothing answers
+        there within ``timeout`` seconds.
+    """
+    if not isinstance(scheduler, str) or not scheduler:
+        raise TypeError("scheduler must be 'local' or an address such as tcp://127.0.0.1:8786")
+    d = _distributed()
+    if scheduler == "local":
+        import os
+        n = n_workers or max(1, min(os.cpu_count() or 1, 8))
+        cluster = d.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                 dashboard_address=None)
+        return d.Client(cluster)
+    if "://" not in scheduler:
+        raise ValueError(f"scheduler {scheduler!r}: give 'local' or an address such as "
+                         f"tcp://127.0.0.1:8786")
+    try:
+        return d.Client(scheduler, timeout=f"{timeout}s")
+    except (OSError, TimeoutError) as exc:
+        raise ValueError(f"scheduler {scheduler}: no Dask scheduler answered within {timeout:g} s "
+                         f"({type(exc).__name__})") from None
+
+
+@contextmanager
+def using(client):
+    """Make ``client`` the one the support searches inside the block run on (None: in process)."""
+    token = _CLIENT.set(client)
+    try:
+        yield client
+    finally:
+        _CLIENT.reset(token)
+
+
+def current():
+    """The client set by :func:`using`, or None."""
+    return _CLIENT.get()
+
+
+def subtree_scores(G, c, bb, forced, free, k, positions):
+    """Scores and smallest pivots of the subtrees ``positions`` (supports whose smallest free column
+    is ``free[i]``), concatenated in order: (scores (n,), pivots (n,)).
+
+    The in-process search (:func:`lsindy_cas.identify.search.score_all`) and the workers both score
+    through this function, subtree by subtree, so their numbers are identical bit for bit however
+    the subtrees are grouped into tasks.  The supports themselves are not returned: they are the
+    lexicographic enumeration, rebuilt by the caller (:func:`subtree_supports`).
+    """
+    from .subset_tree import tree_scores
+    rest = k - len(forced) - 1                     # columns still to choose after free[i]
+    out = [tree_scores(G, c, bb, list(forced) + [int(free[i])], free[i + 1:], k)[1:]
+           for i in positions if len(free) - i - 1 >= rest]
+    if not out:
+        return np.zeros(0), np.zeros(0)
+    return tuple(np.concatenate(parts) for parts in zip(*out))
+
+
+def subtree_supports(forced, free, k) -> np.ndarray:
+    """Every support ``forced`` ∪ (k − |forced|)-subset of ``free``, sorted rows, in the
+    lexicographic order of :func:`subtree_scores` (n, k)."""
+    from .search import combinations
+    forced = np.asarray(sorted(forced), dtype=np.int64)
+    free = np.asarray(free, dtype=np.int64)
+    combos = combinations(len(free), k - len(forced))
+    supports = np.hstack([np.broadcast_to(forced, (len(combos), len(forced))), free[combos]])
+    if len(forced):
+        supports.sort(axis=1)
+    return supports
+
+
+def _groups(sizes: np.ndarray, n_groups: int) -> list:
+    """Consecutive runs of subtrees with about equal total size (order kept)."""
+    total = sizes.sum()
+    if total == 0:
+        return []
+    cuts = np.searchsorted(np.cumsum(sizes), np.linspace(0, total, n_groups + 1)[1:-1], side="left")
+    bounds = np.unique(np.r_[0, cuts + 1, len(sizes)])
+    return [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def _passive_chunk(A, b, supports, D):
+    from .search import score_supports
+    return score_supports(A, b, supports, D)
+
+
+def score_all_distributed(client, A, b, k, forced=(), D=None, progress=None):
+    """:func:`lsindy_cas.identify.search.score_all` with the subtrees scored on ``client``.
+
+    Same returns, in the same order and bit for bit: supports (n, k), scores (n,),
+    degenerate (n,).
+    """
+    from .fitting import normalise_columns
+    from .search import DEGENERACY_TOL
+    d = _distributed()
+    p = A.shape[1]
+    forced = sorted(set(int(j) for j in forced))
+    free = np.array([j for j in range(p) if j not in set(forced)], dtype=np.int64)
+    r = k - len(forced)
+    n_tasks = max(1, TASKS_PER_WORKER * len(client.scheduler_info().get("workers", {})))
+    supports = subtree_supports(forced, free, k)
+    if b is not None:
+        if r == 0:
+            from .search import score_all
+            with using(None):
+                return score_all(A, b, k, forced, D, progress)
+        An, _ = normalise_columns(A)
+        G, c, bb = An.T @ An, An.T @ b, float(b @ b)
+        sizes = np.array([comb(len(free) - i - 1, r - 1) for i in range(len(free))])
+        G_f, c_f = client.scatter([G, c], broadcast=True)
+        futures = [client.submit(subtree_scores, G_f, c_f, bb, forced, free, k, grp, pure=False)
+                   for grp in _groups(sizes, n_tasks)]
+    else:
+        A_f = client.scatter(A, broadcast=True)
+        D_f = client.scatter(D, broadcast=True) if D is not None else None
+        step = max(1, -(-len(supports) // n_tasks))
+        futures = [client.submit(_passive_chunk, A_f, b, supports[lo:lo + step], D_f, pure=False)
+                   for lo in range(0, len(supports), step)]
+    done = 0
+    for fut in d.as_completed(futures):
+        done += len(fut.result()[0])
+        if progress is not None:
+            progress(done, len(supports))
+    parts = client.gather(futures)                     # in submission order: the global order
+    first = np.concatenate([x[0] for x in parts]) if parts else np.zeros(0)
+    second = np.concatenate([x[1] for x in parts]) if parts else np.zeros(0)
+    if b is not None:
+        return supports, first, second < DEGENERACY_TOL
+    return supports, first, second
