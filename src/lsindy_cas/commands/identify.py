@@ -1,7 +1,11 @@
 """``lsindy identify``: trajectory files -> model printout and model file."""
 from __future__ import annotations
 
+import sys
+
 from ._common import command, library, library_arguments, split
+
+EXIT_UNDETERMINED = 3
 
 IDENTIFY_EXAMPLE = """example:
   lsindy identify run1.csv run2.csv --coords x,theta \\
@@ -11,7 +15,13 @@ IDENTIFY_EXAMPLE = """example:
 Trajectory files: CSV (header row) or NPZ with columns t, <q>, <q>_dot, optional Q_<q>
 (generalized force; missing = 0) and optional <q>_ddot (exact accelerations).  t need not be
 evenly spaced.  Positions only (no <q>_dot column at all): the velocities are estimated from the
-positions and the report and model file say so."""
+positions and the report and model file say so.
+
+exit codes:
+  0  the model is determined by the data (status "ok")
+  2  bad input (one line on stderr; nothing is fitted)
+  3  the model is not determined by the data (status "undetermined"): one line on stderr
+     with the reason; the printout and the --json file are still written, with the status"""
 
 
 def run(args) -> int:
@@ -66,6 +76,10 @@ def run(args) -> int:
     if args.json:
         model.save(args.json)
         print(f"model written to {args.json}")
+    if not model.ok_:
+        print(f"lsindy identify: the data do not determine the model: {model.status_reasons_[0]}",
+              file=sys.stderr)
+        return EXIT_UNDETERMINED
     return 0
 
 

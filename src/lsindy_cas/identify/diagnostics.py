@@ -25,10 +25,11 @@ import numpy as np
 from .balance import EnergyBalance
 from .fitting import coef_on_support, normalise_columns, null_vector
 
-__all__ = ["Diagnostics", "ConstantForceTrap", "FitRecord", "constant_force_trap", "diagnose",
+__all__ = ["CONTENDER", "Diagnostics", "ConstantForceTrap", "FitRecord", "constant_force_trap", "diagnose",
            "conserved_quantities", "NEAR_TIE"]
 
 NEAR_TIE = 2.0          # an admissible support within this factor of the winner's score is a near tie
+CONTENDER = 10.0        # runners-up listed in the report: within this factor of the winner's score
 _NULL_FACTOR = 10.0     # see _null_dim
 _POOR_FIT = 0.5         # unexplained fraction of the work above which the data explain too little
 _NUMERICAL_ZERO = 1e-20  # passive scores (squared normalised singular values) this small are exact
@@ -142,6 +143,12 @@ class Diagnostics:
         When the hold was decided from the data: held-out error of the model under each hold.
     velocities : str
         "measured", or "estimated" from the positions (positions-only data), or "mixed".
+    status : {"ok", "undetermined"} or None
+        The one verdict (:mod:`lsindy_cas.identify.status`); None before it is assessed.
+    status_reasons : list of str
+        Why the fit is undetermined, in plain words.
+    checks : dict
+        The numbers behind the verdict (simulation drift, condition number, ...).
     """
 
     near_ties: list = field(default_factory=list)
@@ -158,6 +165,10 @@ class Diagnostics:
     hold: str | None = None
     hold_errors: dict = field(default_factory=dict)
     velocities: str = "measured"
+    status: str | None = None
+    status_reasons: list = field(default_factory=list)
+    checks: dict = field(default_factory=dict)
+    conserved_found: list = field(default_factory=list, repr=False)   # (support, η) per quantity
 
     @property
     def ok(self) -> bool:
@@ -173,7 +184,9 @@ class Diagnostics:
                            for k, e, c in self.k_path],
                 "k_automatic": self.k_automatic, "noise": self.noise,
                 "conserved": self.conserved, "traps": self.traps, "warnings": self.warnings,
-                "hold": self.hold, "hold_errors": self.hold_errors, "velocities": self.velocities}
+                "hold": self.hold, "hold_errors": self.hold_errors, "velocities": self.velocities,
+                "status": self.status, "status_reasons": self.status_reasons,
+                "checks": {k: _jsonable(v) for k, v in self.checks.items()}}
 
     def __str__(self) -> str:
         lines = ["diagnostics:"]
@@ -201,7 +214,8 @@ class Diagnostics:
             lines.append("  estimated noise std: "
                          + ", ".join(f"{k} {v:.1e}" for k, v in self.noise.items()))
         if self.near_ties:
-            lines.append("  closest other supports (score / winner's):")
+            lines.append(f"  other supports within {CONTENDER:g}× of the winner's score "
+                         "(score / winner's):")
             for terms, r, ok, why in self.near_ties[:3]:
                 tag = ("NEAR TIE, admissible" if r <= NEAR_TIE else "admissible") if ok else \
                     f"rejected: {why}" if why else "not examined"
@@ -212,7 +226,21 @@ class Diagnostics:
             lines.append(f"  WARNING: {w}")
         if self.ok:
             lines.append("  no traps or warnings: the data identify this energy")
+        if "simulation_drift" in self.checks:
+            lines.append(f"  short simulation from measured states: drift "
+                         f"{self.checks['simulation_drift']:.1e} of the states' range; condition "
+                         f"number of the chosen terms {self.checks.get('condition', np.nan):.2g}")
+        if self.status is not None:
+            lines.append(f"  status: {self.status.upper()}" + ("" if not self.status_reasons else
+                         " — " + "; ".join(self.status_reasons)))
         return "\n".join(lines)
+
+
+def _jsonable(v):
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    v = float(v)
+    return v if np.isfinite(v) else None
 
 
 def _null_dim(bal: EnergyBalance, S, score: float) -> int:
@@ -236,6 +264,8 @@ def _near_ties(fit: FitRecord, n: int = 5) -> list:
         if tuple(c.support) in seen or len(out) >= n:
             continue
         seen.add(tuple(c.support))
+        if c.score > CONTENDER * base:
+            continue                   # not a contender
         ok, why = c.admissible, c.reason
         if ok is None and admissible is not None and c.score <= NEAR_TIE * base:
             coef = None if bal.passive else coef_on_support(bal.A, bal.b, c.support, None)[0]
@@ -350,6 +380,7 @@ def _passive_report(d: Diagnostics, fit: FitRecord):
     floor = max(NEAR_TIE * res.score, _NUMERICAL_ZERO)
     found = conserved_quantities(lib, fit.balance, res.candidates, fit.coef, floor)
     d.conserved = [_expression(lib, S, eta) for S, eta in found]
+    d.conserved_found = found
     if d.conserved:
         d.traps.append(f"the passive data conserve {1 + len(found)} quantities (energy and "
                        f"{'; '.join(d.conserved)}); a scale trial is needed to tell them apart "

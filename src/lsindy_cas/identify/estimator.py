@@ -16,6 +16,7 @@ from ..mechanics.legendre import legendre
 from ..symbolic.library import Library
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
 from .selection import select
+from .status import assess
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
     row_gradients, sample_weights
@@ -95,7 +96,10 @@ class LagrangianSINDy:
     selection_ : Selection        every k tried and its held-out error
     passive_ : bool               whether the passive (null-space + scale) scheme was used
     smoothing_ : list of Smoothed or None
-    diagnostics_ : Diagnostics    near ties, null space, traps, warnings (print it)
+    diagnostics_ : Diagnostics    near ties, null space, traps, warnings, status (print it)
+    status_ : str                 "ok" or "undetermined" (:mod:`lsindy_cas.identify.status`)
+    status_reasons_ : list of str why it is undetermined, in plain words
+    ok_ : bool                    ``status_ == "ok"``: one check that the data determine the model
     hold_ : str or None           the input hold used by the work integral ("zoh"/"smooth"; None
                                   when no work integral was needed)
     velocities_ : str             "measured", "estimated" (positions only: q̇ from the smoothed
@@ -200,7 +204,7 @@ class LagrangianSINDy:
         runs = _check_trajectories(trajectories, coords)
         holds = self._holds(runs)
         if len(holds) == 1:
-            return self._fit(runs, scale_trajectories, passive, progress, holds[0])
+            return self._fit(runs, scale_trajectories, passive, progress, holds[0])._assess()
         # A force that changes at most samples: a smooth force sampled, or a held one changing every
         # sample.  The data decide: the wrong work integral leaves a systematic residual.  The
         # smoothing does not depend on the hold, so both trials share it.
@@ -221,7 +225,24 @@ class LagrangianSINDy:
         self.hold_errors_ = {m.hold_: m.diagnostics_.held_out_error for m in trials}
         self.hold_errors_.update({h: float("inf") for h in failed})
         self.diagnostics_.hold_errors = self.hold_errors_
+        return self._assess()
+
+    def _assess(self) -> "LagrangianSINDy":
+        """The one verdict on the fit (:func:`.status.assess`): ``status_``, ``status_reasons_``,
+        ``ok_``, also in ``diagnostics_``.  Never raises: an undetermined fit is data."""
+        d = self.diagnostics_
+        simulate = lambda x0, t, u: simulate_ode(self.ode(), x0, t, u, len(self.coords_),  # noqa: E731
+                                                  rtol=1e-9, atol=1e-10)[0]
+        d.status, d.status_reasons, d.checks = assess(self._record, d, simulate)
+        self.status_, self.status_reasons_ = d.status, list(d.status_reasons)
+        del self._record
         return self
+
+    @property
+    def ok_(self) -> bool:
+        """True when the fit's status is "ok": the data determine this model."""
+        self._check_fitted()
+        return getattr(self, "status_", None) == "ok"
 
     def _holds(self, trajectories) -> list:
         """The input holds to try: one when the data or the user settle it, else both."""
@@ -282,6 +303,7 @@ class LagrangianSINDy:
         self._set_coefficients(coef, X=bal.X)
         self.diagnostics_ = diagnose(record)
         self.diagnostics_.velocities = self.velocities_
+        self._record = record
         return self
 
     def _scale_system(self, scale_list):

@@ -38,6 +38,8 @@ def model_to_dict(model) -> dict:
     if getattr(model, "hold_", None) is not None:
         out["hold"] = model.hold_
     out["velocities"] = getattr(model, "velocities_", "measured")   # or "estimated"/"mixed"
+    if getattr(model, "status_", None) is not None:
+        out["status"] = {"status": model.status_, "reasons": list(model.status_reasons_)}
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -73,6 +75,10 @@ def load_model(cls, path):
     model._loaded_diagnostics = d.get("diagnostics")
     model.hold_ = d.get("hold")
     model.velocities_ = d.get("velocities", "measured")     # files before positions-only: measured
+    status = d.get("status")
+    if isinstance(status, dict) and status.get("status") in ("ok", "undetermined"):
+        model.status_ = status["status"]            # files before the status have none
+        model.status_reasons_ = [str(r) for r in status.get("reasons", [])]
     model._set_coefficients(coef)
     check_kinetic(model, path)
     return model

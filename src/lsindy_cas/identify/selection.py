@@ -309,4 +309,5 @@ def _chi(bal, res, noise) -> float:
     """Residual of the search's model in units of its expected noise (nan without a noise model)."""
     if noise is None or bal.b is None:
         return float("nan")
-    return noise.chi(res.coef, res.score * float(bal.b @ bal.b))
+    bb = float(bal.b @ bal.b)
+    return noise.chi(res.coef, res.score * bb, _CV_FLOOR * bb)

@@ -48,12 +48,17 @@ class NoiseModel:
     N: np.ndarray
     beta: float
 
-    def chi(self, coef: np.ndarray, rss: float) -> float:
+    def chi(self, coef: np.ndarray, rss: float, floor: float = 0.0) -> float:
         """Residual sum of squares in units of its expected noise: ≈ 1 when a model fits to within
-        the noise, ≫ 1 when something is missing (dimensionless)."""
+        the noise, ≫ 1 when something is missing (dimensionless).
+
+        ``floor`` is the residual that is numerically zero (round-off and the accuracy of the data's
+        own integration), added to both sides: on clean data the estimated noise is ~0 and an exact
+        model's residual is at that floor, so χ ≈ 1 there instead of 0/0 or 1e11.
+        """
         S = np.flatnonzero(coef)
-        expected = float(coef[S] @ self.N[np.ix_(S, S)] @ coef[S]) + self.beta
-        return rss / expected if expected > 0 else np.inf
+        expected = float(coef[S] @ self.N[np.ix_(S, S)] @ coef[S]) + self.beta + floor
+        return (rss + floor) / expected if expected > 0 else np.inf
 
 
 def noise_model(bal: EnergyBalance, state_var: np.ndarray, smoothed) -> NoiseModel:

@@ -1,0 +1,212 @@
+"""The one verdict on a fit: ``"ok"`` or ``"undetermined"``, with the reasons in plain words.
+
+:func:`assess` runs after :func:`~lsindy_cas.identify.diagnostics.diagnose` and the Legendre step
+(it needs the identified equations of motion).  A fit is ``undetermined`` when any check fails:
+
+1. **held-out balance** — the model leaves more than half of the held-out work unexplained, or its
+   residual is more than ``CHI_BAD`` times what the estimated noise explains (χ; the noise model
+   exists for the smoothed integral form);
+2. **short simulation** — the identified ODE, started from measured states at ``N_STARTS`` points
+   of each run and driven by the recorded (held) force, drifts from the measured states over
+   ``HORIZON`` samples by more than ``SIM_TOL`` of each state's range (median over the stretches,
+   so one stretch through a singular point does not decide).  The balance constrains the energy
+   only along the data; a wrong energy that still balances them (an energy plus a conserved
+   quantity, an imitation of u·x) moves differently, and this sees it;
+3. **near ties** — another admissible support fits within ``NEAR_TIE`` of the chosen one;
+4. **near-null space** — a combination of the chosen terms changes the fit less than its residual
+   does, or (passive) the data conserve another quantity that the scale trial cannot tell apart
+   from the energy (the two-column scale fit has a direction as weak as its residual);
+5. **inadmissible runner-ups** — a support rejected by the physical rules fits more than
+   ``NEAR_TIE`` times better than the chosen one (the data prefer something that is not an energy:
+   the library lacks a term or the chosen model is an imitation);
+6. **ill-conditioning** — the column-normalised terms of the chosen support have a condition
+   number above ``COND_BAD`` (round-off alone moves the coefficients visibly).
+
+All tests are dimensionless (ratios, fractions of a range, condition numbers).  The Python API
+never raises for an undetermined fit: the status is data (``model.status_``, ``model.ok_``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .admissibility import EXCLUDED_REASON, REDUCIBLE_REASON
+from .fitting import normalise_columns
+from .diagnostics import NEAR_TIE, _NULL_FACTOR
+
+__all__ = ["assess", "OK", "UNDETERMINED", "SIM_TOL", "HORIZON", "CHI_BAD", "CHI_MIN_ERROR",
+           "COND_BAD"]
+
+OK, UNDETERMINED = "ok", "undetermined"
+SIM_TOL = 0.05       # short-horizon drift, as a fraction of each state's range over the run
+HORIZON = 20         # samples per simulated stretch (0.2 s at 100 Hz)
+N_STARTS = 4         # stretches per run
+MAX_STRETCHES = 16
+# χ of correct models measured 0.2–1.7 (selection.CHI_OK = 2); models missing a term ≳ 40.
+CHI_BAD = 10.0
+# ... but only when the model leaves a visible part of the held-out work unexplained: on clean data
+# the noise estimate is ~0 and residuals of 1e-12 (smoothing, quadrature) read as χ ≫ 1.
+CHI_MIN_ERROR = 1e-8
+COND_BAD = 1e10
+
+
+def assess(fit, d, simulate) -> tuple[str, list, dict]:
+    """The verdict on a fit.
+
+    Parameters
+    ----------
+    fit : FitRecord
+    d : Diagnostics
+        Its report (the status fields are filled in here).
+    simulate : callable ``(x0, t, u) -> X``
+        The identified model's simulation (``LagrangianSINDy.simulate``).
+
+    Returns
+    -------
+    status : {"ok", "undetermined"}
+    reasons : list of str
+        Why it is undetermined, in plain words (empty when ok).
+    checks : dict
+        The numbers behind the checks (simulation drift, condition number, scale resolution).
+    """
+    bal = fit.balance
+    reasons, checks = list(d.warnings), {}
+    if bal.passive and d.null_dim > 1:
+        # the passive rows alone leave it open; the scale record may settle it (cart: p ≡ 0 ties
+        # ẋ² to θ̇ẋ cos θ until the scale trial pushes the cart)
+        extra = _passive_null(fit)
+        checks["passive_null_dim"] = extra
+        if extra == 0:
+            reasons = [w for w in reasons if "uniquely" not in w]
+    if np.isfinite(d.chi) and d.chi > CHI_BAD and d.held_out_error > CHI_MIN_ERROR:
+        reasons.append(f"the residual is {d.chi:.3g}× what the estimated noise explains: the model "
+                       "misses part of the data (a term outside the library, friction, or a "
+                       "wrong input hold)")
+    cond = _condition(bal, fit.support, fit.scale_system)
+    checks["condition"] = cond
+    if cond > COND_BAD:
+        reasons.append(f"the chosen terms are nearly linearly dependent on these data (condition "
+                       f"number {cond:.2g}): their coefficients are not determined")
+    # (passive data: rejected momentum-like supports are conserved quantities, reported as such)
+    better = [] if bal.passive else [t for t in d.near_ties
+                                     if not t[2] and t[1] * NEAR_TIE < 1 and _rival(t[3])]
+    if better:
+        terms, r, _, why = better[0]
+        reasons.append(f"a model the physical rules reject fits {1 / r:.3g}× better than the "
+                       f"chosen one ({' + '.join(terms)}: {why}); the library may lack a term")
+    if bal.passive and d.conserved_found:
+        unresolved = _scale_unresolved(fit, d.conserved_found)
+        checks["scale_resolution"] = unresolved
+        if any(u > 0 for u in unresolved):
+            reasons.append("the passive data conserve another quantity besides the energy and the "
+                           "scale trial does not tell them apart: record a longer or more varied "
+                           "actuated scale trial")
+    drift = _simulation_drift(fit, simulate)
+    checks["simulation_drift"] = drift
+    if drift > SIM_TOL:
+        reasons.append(f"a short simulation of the identified equations ({HORIZON} samples from "
+                       f"measured states) drifts by {100 * drift:.2g} % of the states' range "
+                       "(median over stretches): the energy balances the data but does not move "
+                       "like them")
+    return (UNDETERMINED if reasons else OK), reasons, checks
+
+
+def _rival(reason) -> bool:
+    """Is a rejected support a rival energy the rules exclude (not a smaller model, an excluded
+    coordinate, or a term fitted to noise)?"""
+    return bool(reason) and reason not in (REDUCIBLE_REASON, EXCLUDED_REASON) \
+        and "significantly" not in reason and "came out zero" not in reason
+
+
+def _condition(bal, S, scale_system=None) -> float:
+    """Condition number of the column-normalised chosen terms.  Passive: of the passive rows and
+    the scale record stacked (each block scaled to unit norm), since the two together fix the
+    coefficients — the passive rows alone always have the energy's own null direction, and may
+    have more (the cart's zero momentum ties ẋ² to θ̇ẋ cos θ) that the scale record resolves."""
+    if not S:
+        return float("inf")
+    A = bal.A[:, list(S)]
+    if bal.passive and scale_system is not None:
+        A_s = scale_system[0][:, list(S)]
+        A = np.vstack([A / max(np.linalg.norm(A), 1e-300), A_s / max(np.linalg.norm(A_s), 1e-300)])
+    sv = np.linalg.svd(normalise_columns(A)[0], compute_uv=False)
+    return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+
+
+def _passive_null(fit) -> int:
+    """Undetermined directions of the passive rows and the scale record together.
+
+    Stacked, each block scaled to unit norm, columns normalised: M η = [0; b_s/‖b_s‖]; direction j
+    is undetermined when σ_j² ≤ 10·(residual fraction)/rows (the rule of ``_null_dim``)."""
+    if fit.scale_system is None:
+        return 1
+    S = list(fit.support)
+    A, (A_s, b_s) = fit.balance.A[:, S], fit.scale_system
+    na, ns, nb = (max(float(np.linalg.norm(x)), 1e-300) for x in (A, A_s[:, S], b_s))
+    M = normalise_columns(np.vstack([A / na, A_s[:, S] / ns]))[0]
+    rhs = np.r_[np.zeros(len(A)), b_s / nb]
+    sol = np.linalg.lstsq(M, rhs, rcond=None)[0]
+    score = max(float(np.sum((M @ sol - rhs) ** 2)), 1e-18)
+    sv = np.linalg.svd(M, compute_uv=False)
+    return int(np.sum(sv ** 2 <= _NULL_FACTOR * score / len(M)))
+
+
+def _scale_unresolved(fit, found) -> list:
+    """Per other conserved quantity I: 1 when the scale record cannot separate E from I.
+
+    The scale record's work b_s is fitted as a·A_s η_E + c·A_s η_I; with normalised columns and
+    ‖b_s‖ = 1 the direction j is undetermined when σ_j² ≤ 10·(residual fraction)/m, the rule of
+    :func:`~lsindy_cas.identify.diagnostics._null_dim`.
+    """
+    if fit.scale_system is None:
+        return [1 for _ in found]
+    A_s, b_s = fit.scale_system
+    norm = float(np.linalg.norm(b_s))
+    if norm == 0:
+        return [1 for _ in found]
+    b = b_s / norm
+    out = []
+    for S, eta in found:
+        cols = np.column_stack([A_s @ fit.coef, A_s[:, list(S)] @ np.asarray(eta, float)])
+        An = normalise_columns(cols)[0]
+        sol = np.linalg.lstsq(An, b, rcond=None)[0]
+        score = max(float(np.sum((An @ sol - b) ** 2)), 1e-18)
+        sv = np.linalg.svd(An, compute_uv=False)
+        out.append(int(np.sum(sv ** 2 <= _NULL_FACTOR * score / len(b))))
+    return out
+
+
+def _stretches(fit):
+    """(trajectory used as the measured states, start index) pairs, spread over each run."""
+    runs = ([s.trajectory for s in fit.smoothing] if fit.smoothing else list(fit.trajectories))
+    out = []
+    for tr in runs:
+        n = tr.n_samples
+        if n <= HORIZON:
+            continue
+        starts = np.linspace(0, n - HORIZON - 1, N_STARTS).astype(int)
+        out += [(tr, int(i)) for i in np.unique(starts)]
+    if len(out) > MAX_STRETCHES:
+        out = [out[i] for i in np.linspace(0, len(out) - 1, MAX_STRETCHES).astype(int)]
+    return out
+
+
+def _simulation_drift(fit, simulate) -> float:
+    """Median over stretches of max_t,k |x_sim − x_meas| / range_k (nan-free; 0 without stretches)."""
+    drifts = []
+    for tr, i in _stretches(fit):
+        X = tr.X
+        span = np.ptp(X, axis=0)
+        span = np.where(span > 0, span, 1.0)
+        t = tr.t[i:i + HORIZON + 1]
+        Q = tr.Q[i:i + HORIZON + 1]
+        u = (lambda tt, x, t=t, Q=Q:
+             Q[min(int(np.searchsorted(t, tt, side="right")) - 1, len(Q) - 1)])
+        try:
+            with np.errstate(all="ignore"):
+                Xs = simulate(X[i], t, u)
+        except (RuntimeError, ValueError, np.linalg.LinAlgError):
+            drifts.append(np.inf)
+            continue
+        err = np.abs(Xs - X[i:i + HORIZON + 1]) / span
+        drifts.append(float(np.max(err)) if np.all(np.isfinite(err)) else np.inf)
+    return float(np.median(drifts)) if drifts else 0.0
