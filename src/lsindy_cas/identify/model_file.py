@@ -37,6 +37,12 @@ def model_to_dict(model) -> dict:
     }
     if getattr(model, "hold_", None) is not None:
         out["hold"] = model.hold_
+    if getattr(model, "coef_std_", None) is not None:      # standard errors, same keys as the terms
+        names = model.library.names
+        for key, coef, std in (("hamiltonian_std", model.coef_, model.coef_std_),
+                               ("lagrangian_std", model.lagrangian_coef_, model.lagrangian_coef_std_)):
+            out[key] = {names[j]: float(std[j]) for j in np.flatnonzero(coef)}
+        out["std_method"] = model.std_method_
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -72,6 +78,14 @@ def load_model(cls, path):
     model._loaded_diagnostics = d.get("diagnostics")
     model.hold_ = d.get("hold")
     model._set_coefficients(coef)
+    if "hamiltonian_std" in d:           # files before the standard errors existed have none
+        std = {}
+        for key in ("hamiltonian_std", "lagrangian_std"):
+            std[key] = np.zeros(len(lib))
+            for name, se in d.get(key, {}).items():
+                std[key][lib.index(name, what=f"{path}: term")] = float(se)
+        model.coef_std_, model.lagrangian_coef_std_ = std["hamiltonian_std"], std["lagrangian_std"]
+        model.std_method_ = d.get("std_method")
     check_kinetic(model, path)
     return model
 
