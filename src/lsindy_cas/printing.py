@@ -15,12 +15,17 @@ Symbols print as a physicist writes them: ``theta1_dot`` → θ̇₁ (``\\dot{\\
 """
 from __future__ import annotations
 
+import numpy as np
 import sympy as sp
 from sympy.printing.conventions import split_super_sub
 
-__all__ = ["simplify", "plain", "pretty", "latex", "describe", "symbol_latex"]
+__all__ = ["simplify", "plain", "pretty", "latex", "describe", "symbol_latex", "decimal_place",
+           "format_pm", "round_coef"]
 
 DIGITS = 4
+# Most significant digits a coefficient is printed with when its standard error is tiny (exact
+# fits on clean data) or unknown: beyond this the digits are round-off, not information.
+MAX_DIGITS = 6
 
 
 def _check_digits(digits) -> int:
@@ -80,6 +85,73 @@ def simplify(expr, digits: int = DIGITS):
         return sp.Eq(simplify(expr.lhs, digits), simplify(expr.rhs, digits), evaluate=False)
     exact = _round(sp.expand(expr), digits)
     return _to_floats(_trigsimp(exact), digits)
+
+
+# ---------------------------------------------------------------------- values with errors
+def decimal_place(value: float, std: float, max_digits: int = MAX_DIGITS) -> int:
+    """Decimal exponent d to round ``value`` to (to a multiple of 10**d).
+
+    Two significant digits of ``std`` (the usual convention for a standard error), but never more
+    than ``max_digits`` significant digits of ``value``: ``(0.04903, 0.00021) -> -4``.
+    """
+    max_digits = _check_digits(max_digits)
+    mag = abs(float(value))
+    if mag > 0 and np.isfinite(mag):
+        mag = float(f"{mag:.{max_digits - 1}e}")        # 0.09999999 counts as 0.1
+    e = int(np.floor(np.log10(mag))) if mag > 0 and np.isfinite(mag) else 0
+    floor = e - max_digits + 1
+    std = float(std)
+    if not (np.isfinite(std) and std > 0):
+        return floor
+    return max(int(np.floor(np.log10(std))) - 1, floor)
+
+
+def round_coef(coef, std=None, max_digits: int = MAX_DIGITS) -> np.ndarray:
+    """Each coefficient rounded to the decimal place its standard error allows (:func:`decimal_place`).
+
+    Parameters
+    ----------
+    coef : array (p,)
+    std : array (p,), optional
+        Standard errors (None, 0 or nan: ``max_digits`` significant digits).
+    """
+    coef = np.asarray(coef, float)
+    std = np.zeros_like(coef) if std is None else np.asarray(std, float)
+    out = np.zeros_like(coef)
+    for j in np.flatnonzero(coef):
+        d = decimal_place(coef[j], std[j], max_digits)
+        out[j] = float(round(coef[j] / 10.0 ** d) * 10.0 ** d) if d > 0 else round(coef[j], -d)
+    return out
+
+
+def format_pm(value: float, std: float, max_digits: int = MAX_DIGITS) -> str:
+    """``value ± std`` with two significant digits of ``std`` and the value to the same place.
+
+    >>> format_pm(0.049031, 0.000213)
+    '0.04903 ± 0.00021'
+    >>> format_pm(0.5, 3e-15)              # exact fit: at most six digits, the error as it is
+    '0.500000 ± 3e-15'
+    """
+    value, std = float(value), float(std)
+    d = decimal_place(value, std, max_digits)
+    if not np.isfinite(std):
+        err = "?"
+    elif std == 0 or std < 0.5 * 10.0 ** d:      # below the last digit shown
+        err = f"{std:.2g}"
+    else:
+        err = None
+    mag = abs(value)
+    e = int(np.floor(np.log10(float(f"{mag:.{max_digits - 1}e}")))) if mag > 0 else d
+    if -4 <= e <= 6 and d >= -12:
+        places = max(-d, 0)
+        text = f"{round(value, -d) if d < 0 else round(value / 10.0 ** d) * 10.0 ** d:.{places}f}"
+        return text + " ± " + (err if err is not None else f"{std:.{places}f}")
+    # very small or large numbers: a common power of ten, (2.300 ± 0.010)e-08
+    scale = 10.0 ** e
+    places = max(e - d, 0)
+    inner = f"{value / scale:.{places}f} ± " + (err if err is not None else
+                                                f"{std / scale:.{places}f}")
+    return f"({inner})e{e:+03d}"
 
 
 # ---------------------------------------------------------------------- display symbols
@@ -168,15 +240,49 @@ def latex(expr, digits: int = DIGITS, coords=None) -> str:
 _STYLES = ("pretty", "latex", "plain")
 
 
-def describe(model, digits: int = DIGITS, style: str = "pretty") -> str:
+def rounded(model):
+    """``(H, L, equations of motion)`` of a fitted model with each coefficient rounded to the
+    place its standard error allows (:func:`round_coef`; ``MAX_DIGITS`` significant digits when
+    the model has no standard errors), the equations derived from the rounded L."""
+    from .identify.estimator import combine
+    from .mechanics.euler_lagrange import EulerLagrange
+    lib = model.library
+    coef_h = round_coef(model.coef_, getattr(model, "coef_std_", None))
+    coef_l = round_coef(model.lagrangian_coef_, getattr(model, "lagrangian_coef_std_", None))
+    L = combine(lib, coef_l)
+    return combine(lib, coef_h), L, EulerLagrange(lib.coords, L).equations()
+
+
+def coefficient_table(model, indent: str = "  ") -> str:
+    """The identified coefficients as ``value ± standard error``, one line per term of H and L.
+
+    Returns "" for a model without standard errors (a model file written before they existed).
+    """
+    std_h = getattr(model, "coef_std_", None)
+    if std_h is None:
+        return ""
+    names = model.library.names
+    rows = [(part, names[j], format_pm(coef[j], std[j]))
+            for part, coef, std in (("H", model.coef_, std_h),
+                                    ("L", model.lagrangian_coef_, model.lagrangian_coef_std_))
+            for j in np.flatnonzero(coef)]
+    width = max((len(n) for _, n, _ in rows), default=0)
+    how = getattr(model, "std_method_", None)
+    head = "coefficients ± standard error" + (f" ({how})" if how else "") + ":"
+    return "\n".join([head] + [f"{indent}{part}  {name:<{width}}  {pm}" for part, name, pm in rows])
+
+
+def describe(model, digits: int | None = None, style: str = "pretty") -> str:
     """H, L and the equations of motion of a fitted ``LagrangianSINDy``, ready to print.
 
     Parameters
     ----------
     model : LagrangianSINDy
         A fitted (or loaded) model.
-    digits : int
-        Significant digits of the coefficients.
+    digits : int, optional
+        Significant digits of every coefficient.  None (default): each coefficient to the
+        decimal place its standard error allows (two digits of the error, at most
+        ``MAX_DIGITS`` significant digits; :func:`round_coef`).
     style : {"pretty", "latex", "plain"}
         Unicode 2-D, LaTeX (an ``align*`` block) or one line each in sympy syntax.
     """
@@ -185,8 +291,12 @@ def describe(model, digits: int = DIGITS, style: str = "pretty") -> str:
     if not hasattr(model, "hamiltonian_"):
         raise ValueError("the model is not fitted yet; call fit() or load()")
     coords = list(model.coords_)
-    H, L = model.hamiltonian_, model.lagrangian_
-    eoms = model.equations_of_motion()
+    if digits is None:
+        H, L, eoms = rounded(model)
+        digits = MAX_DIGITS
+    else:
+        H, L = model.hamiltonian_, model.lagrangian_
+        eoms = model.equations_of_motion()
     if style == "latex":
         rows = [rf"H &= {latex(H, digits, coords)}", rf"L &= {latex(L, digits, coords)}"]
         rows += [rf"{latex(e.lhs, digits, coords)} &= {latex(e.rhs, digits, coords)}" for e in eoms]

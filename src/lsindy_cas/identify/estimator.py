@@ -17,6 +17,7 @@ from ..symbolic.library import Library
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
 from .selection import select
 from .status import assess
+from .standard_errors import coefficient_errors
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
     row_gradients, sample_weights
@@ -301,6 +302,7 @@ class LagrangianSINDy:
         kinds = {tr.velocities for tr in trajectories + (scale_list or [])}
         self.velocities_ = kinds.pop() if len(kinds) == 1 else "mixed"
         self._set_coefficients(coef, X=bal.X)
+        self._set_errors(coefficient_errors(bal, self.coef_, lib, bal.X, scale_system))
         self.diagnostics_ = diagnose(record)
         self.diagnostics_.velocities = self.velocities_
         self._record = record
@@ -346,9 +348,15 @@ class LagrangianSINDy:
         self.coef_ = np.asarray(coef, float)
         self.support_ = tuple(int(j) for j in np.flatnonzero(self.coef_))
         self.lagrangian_coef_ = legendre(lib, self.coef_, X)
-        self.hamiltonian_ = _combine(lib, self.coef_)
-        self.lagrangian_ = _combine(lib, self.lagrangian_coef_)
+        self.hamiltonian_ = combine(lib, self.coef_)
+        self.lagrangian_ = combine(lib, self.lagrangian_coef_)
         self._mechanics = EulerLagrange(lib.coords, self.lagrangian_)
+
+    def _set_errors(self, errors):
+        """Standard errors of H's and L's coefficients (:mod:`.standard_errors`)."""
+        self.coef_std_ = np.asarray(errors.hamiltonian, float)
+        self.lagrangian_coef_std_ = np.asarray(errors.lagrangian, float)
+        self.std_method_ = errors.method
 
     def _check_fitted(self):
         if not hasattr(self, "coef_"):
@@ -379,10 +387,12 @@ class LagrangianSINDy:
     def __str__(self) -> str:
         if not hasattr(self, "coef_"):
             return "LagrangianSINDy(unfitted)"
-        lines = [f"H = {_fmt(self.hamiltonian_)}", f"L = {_fmt(self.lagrangian_)}",
-                 "equations of motion:"]
-        lines += [f"  {_fmt(e.lhs)} = {_fmt(e.rhs)}" for e in self.equations_of_motion()]
-        return "\n".join(lines)
+        from ..printing import MAX_DIGITS, coefficient_table, rounded
+        H, L, eoms = rounded(self)     # digits from the standard errors
+        lines = [f"H = {_fmt(H, MAX_DIGITS)}", f"L = {_fmt(L, MAX_DIGITS)}", "equations of motion:"]
+        lines += [f"  {_fmt(e.lhs, MAX_DIGITS)} = {_fmt(e.rhs, MAX_DIGITS)}" for e in eoms]
+        table = coefficient_table(self)
+        return "\n".join(lines + ([table] if table else []))
 
     # ------------------------------------------------------------------ persistence
     def to_dict(self) -> dict:
@@ -414,7 +424,8 @@ def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
     return coef
 
 
-def _combine(lib: Library, coef) -> sp.Expr:
+def combine(lib: Library, coef) -> sp.Expr:
+    """Σ_j coef_j θ_j over the non-zero coefficients (sympy)."""
     return sp.Add(*[sp.Float(float(coef[j]), 15) * lib.exprs[j] for j in np.flatnonzero(coef)])
 
 

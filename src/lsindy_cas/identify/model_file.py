@@ -40,6 +40,12 @@ def model_to_dict(model) -> dict:
     out["velocities"] = getattr(model, "velocities_", "measured")   # or "estimated"/"mixed"
     if getattr(model, "status_", None) is not None:
         out["status"] = {"status": model.status_, "reasons": list(model.status_reasons_)}
+    if getattr(model, "coef_std_", None) is not None:      # standard errors, same keys as the terms
+        names = model.library.names
+        for key, coef, std in (("hamiltonian_std", model.coef_, model.coef_std_),
+                               ("lagrangian_std", model.lagrangian_coef_, model.lagrangian_coef_std_)):
+            out[key] = {names[j]: float(std[j]) for j in np.flatnonzero(coef)}
+        out["std_method"] = model.std_method_
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -80,6 +86,14 @@ def load_model(cls, path):
         model.status_ = status["status"]            # files before the status have none
         model.status_reasons_ = [str(r) for r in status.get("reasons", [])]
     model._set_coefficients(coef)
+    if "hamiltonian_std" in d:           # files before the standard errors existed have none
+        std = {}
+        for key in ("hamiltonian_std", "lagrangian_std"):
+            std[key] = np.zeros(len(lib))
+            for name, se in d.get(key, {}).items():
+                std[key][lib.index(name, what=f"{path}: term")] = float(se)
+        model.coef_std_, model.lagrangian_coef_std_ = std["hamiltonian_std"], std["lagrangian_std"]
+        model.std_method_ = d.get("std_method")
     check_kinetic(model, path)
     return model
 

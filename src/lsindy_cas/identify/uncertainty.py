@@ -219,7 +219,7 @@ class Jackknife:
     re-centres the rest exactly.  Each support then costs ``n_blocks`` small solves.
     """
 
-    def __init__(self, bal: EnergyBalance, n_blocks: int = N_BLOCKS):
+    def __init__(self, bal: EnergyBalance, n_blocks: int = N_BLOCKS, ids=None):
         A = bal.A
         if bal.centred:
             w = np.ones(len(A)) if bal.weights is None else bal.weights
@@ -229,7 +229,11 @@ class Jackknife:
         self.p = bal.A.shape[1]
         self.n_int = A.shape[1] - self.p
         self.passive = bal.passive
-        ids = block_ids(bal, n_blocks)
+        if ids is None:
+            ids = block_ids(bal, n_blocks)
+        else:                      # caller's row groups (e.g. whole runs): ids 0..n_blocks-1
+            ids = np.unique(np.asarray(ids), return_inverse=True)[1].ravel()
+            n_blocks = int(ids.max()) + 1
         self.n_blocks = n_blocks
         self.G = np.stack([A[ids == k].T @ A[ids == k] for k in range(n_blocks)])
         self.c = None if bal.b is None else np.stack([A[ids == k].T @ bal.b[ids == k]
@@ -247,8 +251,12 @@ class Jackknife:
         d = np.sqrt(np.maximum(np.diag(M), 1e-300))
         return scaled_null(M / np.outer(d, d), d, S, scale_system)
 
-    def t(self, S, coef_S=None, scale_system=None) -> np.ndarray:
-        """|coefficient| / jackknife standard error, per term of S: (k,)."""
+    def replicates(self, S, coef_S=None, scale_system=None):
+        """Leave-one-block-out coefficients on S: ``(reps (n_blocks, k), coef_S (k,))``.
+
+        ``coef_S`` defaults to least squares on all rows; passive null vectors without a scale
+        record get the sign of ``coef_S``.
+        """
         S = list(S)
         k = len(S)
         idx = S + list(range(self.p, self.p + self.n_int))
@@ -262,7 +270,16 @@ class Jackknife:
             coef_S = self._solve(self.G_all, self.c_all, idx, k, scale_system, S)
         if self.passive and scale_system is None:   # unscaled null vectors: arbitrary sign
             reps *= np.sign(reps @ coef_S)[:, None]
-        se = np.sqrt((self.n_blocks - 1) / self.n_blocks * ((reps - reps.mean(axis=0)) ** 2).sum(axis=0))
+        return reps, coef_S
+
+    def se(self, reps) -> np.ndarray:
+        """Jackknife standard error (k,) from leave-one-out replicates (n_blocks, k)."""
+        return np.sqrt((self.n_blocks - 1) / self.n_blocks * ((reps - reps.mean(axis=0)) ** 2).sum(axis=0))
+
+    def t(self, S, coef_S=None, scale_system=None) -> np.ndarray:
+        """|coefficient| / jackknife standard error, per term of S: (k,)."""
+        reps, coef_S = self.replicates(S, coef_S, scale_system)
+        se = self.se(reps)
         with np.errstate(divide="ignore", invalid="ignore"):
             t = np.abs(coef_S) / se
         return np.where(se > 0, t, np.inf)
