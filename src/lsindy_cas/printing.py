@@ -186,17 +186,25 @@ def describe(model, digits: int = DIGITS, style: str = "pretty") -> str:
         raise ValueError("the model is not fitted yet; call fit() or load()")
     coords = list(model.coords_)
     H, L = model.hamiltonian_, model.lagrangian_
+    R = getattr(model, "rayleigh_", 0)         # friction: Rayleigh function, forces −∂R/∂q̇
     eoms = model.equations_of_motion()
+    note = ([] if getattr(model, "energy_scale_", "absolute") != "relative" else
+            [f"(energy relative: H, L, R up to a constant factor; {model.normalised_by_} has "
+             "coefficient 1)"])
     if style == "latex":
         rows = [rf"H &= {latex(H, digits, coords)}", rf"L &= {latex(L, digits, coords)}"]
+        rows += [rf"R &= {latex(R, digits, coords)}"] if R != 0 else []
         rows += [rf"{latex(e.lhs, digits, coords)} &= {latex(e.rhs, digits, coords)}" for e in eoms]
-        return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
+        return "\n".join(["\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"]
+                         + ["% " + n for n in note])
     if style == "plain":
-        lines = [f"H = {plain(H, digits)}", f"L = {plain(L, digits)}", "equations of motion:"]
+        lines = [f"H = {plain(H, digits)}", f"L = {plain(L, digits)}"]
+        lines += ([f"R = {plain(R, digits)}"] if R != 0 else []) + note + ["equations of motion:"]
         lines += [f"  {plain(e.lhs, digits)} = {plain(e.rhs, digits)}" for e in eoms]
         return "\n".join(lines)
-    blocks = [_labelled("H = ", pretty(H, digits, coords)), _labelled("L = ", pretty(L, digits, coords)),
-              "equations of motion (M q̈ = F):"]
+    blocks = [_labelled("H = ", pretty(H, digits, coords)), _labelled("L = ", pretty(L, digits, coords))]
+    blocks += [_labelled("R = ", pretty(R, digits, coords))] if R != 0 else []
+    blocks += note + ["equations of motion (M q̈ = F):"]
     blocks += [_labelled("  ", pretty(e, digits, coords)) for e in eoms]
     return "\n".join(blocks)
 

@@ -60,6 +60,10 @@ class EnergyBalance:
     centred : bool
         Rows are deviations from their trajectory's weighted mean (the all-windows integral form);
         then row i belongs to sample i, so ``X``, ``D`` and the rows line up.
+    dissipation : array (n_rows, r), optional
+        Rayleigh dissipation columns (:mod:`lsindy_cas.identify.dissipation`), rows as ``A``'s.
+        When set, ``A`` and ``b`` are projected off their span and ``raw`` holds the unprojected
+        ``(A, b)``.
     """
 
     A: np.ndarray
@@ -70,6 +74,8 @@ class EnergyBalance:
     groups: np.ndarray | None = None
     weights: np.ndarray | None = None
     centred: bool = False
+    dissipation: np.ndarray | None = None
+    raw: tuple | None = None
 
     @property
     def passive(self) -> bool:

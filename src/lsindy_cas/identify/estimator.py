@@ -12,6 +12,8 @@ from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from ..data.trajectory import Trajectory
 from .diagnostics import FitRecord, constant_force_trap, diagnose
+from .dissipation import dissipation_columns, dissipation_library, fold_scale, full_rayleigh, \
+    norm_term, project, prune
 from ..mechanics.legendre import legendre
 from ..symbolic.library import Library
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
@@ -81,6 +83,11 @@ class LagrangianSINDy:
         (default): a force that is constant or changes at few samples is held; one that changes
         at most samples is ambiguous — both work integrals are fitted and the one with the
         smaller held-out error is kept.  ``hold_`` says which was used.
+    dissipation : sequence of str or Library, optional
+        Candidate terms of a Rayleigh dissipation function R(q̇) over ``<q>_dot`` (viscous
+        ``theta_dot**2``, ``theta1_dot*theta2_dot``; Coulomb ``Abs(x_dot)``): the balance becomes
+        dE/dt = P − q̇·∂R/∂q̇ and the equations of motion gain the friction forces −∂R/∂q̇
+        (:mod:`lsindy_cas.identify.dissipation`).  Terms the data do not support come out zero.
 
     Attributes (after ``fit``)
     --------------------------
@@ -98,11 +105,17 @@ class LagrangianSINDy:
     diagnostics_ : Diagnostics    near ties, null space, traps, warnings (print it)
     hold_ : str or None           the input hold used by the work integral ("zoh"/"smooth"; None
                                   when no work integral was needed)
+    rayleigh_coef_ : array (r,)   dissipation coefficients ρ (R = Σ ρ_j R_j; zeros when absent)
+    rayleigh_ : sympy.Expr        the identified R(q̇) (0 without friction)
+    energy_scale_ : str           "absolute", or "relative" (passive data without a scale record:
+                                  H, L and R up to one common factor, fixed by ``normalised_by_``)
+    normalised_by_ : str or None  relative energy: the term whose coefficient is set to 1 (the
+                                  first prior term, else the first kinetic term of the support)
     """
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
                  window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
-                 hold: str = "auto"):
+                 hold: str = "auto", dissipation=None):
         self.library = library
         self.n_terms = n_terms
         self.prior = prior
@@ -111,6 +124,7 @@ class LagrangianSINDy:
         self.smoothing = smoothing
         self.max_terms = max_terms
         self.hold = hold
+        self.dissipation = dissipation
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
@@ -131,6 +145,9 @@ class LagrangianSINDy:
         check_choice("hold", self.hold, _HOLDS)
         check_choice("smoothing", self.smoothing, _SMOOTHING)
         check_int("window", self.window, low=1, allow_none=True)
+        self._diss_lib = dissipation_library(self.library.coords, self.dissipation)
+        if self._diss_lib is not None and self.window is not None:
+            raise ValueError("dissipation needs the all-windows integral form: leave window unset")
         return sorted(set(forced))
 
     def _form(self, trajectories) -> str:
@@ -138,11 +155,28 @@ class LagrangianSINDy:
             return "derivative" if all(tr.qdd is not None for tr in trajectories) else "integral"
         return self.form
 
-    def _balance(self, trajectories, passive=None, weights=None):
+    def _balance(self, trajectories, passive=None, weights=None, dissipation=True):
         if self._form(trajectories) == "derivative":
-            return derivative_form(self.library, trajectories, passive=passive)
-        return integral_form(self.library, trajectories, window=self.window, passive=passive,
-                             weights=weights, hold=self.hold_ or "auto")
+            if not all(tr.qdd is not None for tr in trajectories):
+                raise ValueError("form='derivative' needs accelerations <q>_ddot in every "
+                                 "trajectory; use form='integral' (or 'auto')")
+            bal = derivative_form(self.library, trajectories, passive=passive)
+        else:
+            bal = integral_form(self.library, trajectories, window=self.window, passive=passive,
+                                weights=weights, hold=self.hold_ or "auto")
+        lib = self._active_dissipation() if dissipation else None
+        if lib is None:
+            return bal
+        return project(bal, dissipation_columns(lib, trajectories, bal), lib.names)
+
+    def _active_dissipation(self):
+        """The dissipation terms still in the model (a Library), or None."""
+        lib = getattr(self, "_diss_lib", None)
+        active = getattr(self, "_diss_active", None)
+        if lib is None or not active:
+            return None
+        return lib if len(active) == len(lib) else type(lib)(lib.coords,
+                                                            [lib.exprs[j] for j in active])
 
     def _prepare(self, trajectories):
         """States for the balance and their noise variance per row (integral form), or as given."""
@@ -173,6 +207,7 @@ class LagrangianSINDy:
             Progress of the support search (e.g. :class:`lsindy_cas.progress.ProgressBar`).
         """
         self._validate()
+        self._diss_active = None if self._diss_lib is None else list(range(len(self._diss_lib)))
         coords = self.library.coords.names
         runs = _check_trajectories(trajectories, coords)
         holds = self._holds(runs)
@@ -219,7 +254,7 @@ class LagrangianSINDy:
                                          else prepared)
         # 3. energy balance (and the passive scheme's scale record)
         bal = self._balance(states, passive=passive)
-        scale_system = self._scale_system(scale_list) if bal.passive else None
+        scale_system = self._scale_system(scale_list, bal) if bal.passive else None
         # 4. the rules a candidate must pass
         trap = constant_force_trap(lib, trajectories, forced) if not bal.passive else None
         excluded = [] if trap is None else trap.excluded
@@ -235,7 +270,21 @@ class LagrangianSINDy:
         if state_var is not None and bal.centred:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
                                                       scale_system, excluded, row_gradients(bal))
-        # 7. the model and its report
+        # 7. dissipation: drop the terms the data do not support and fit again without them
+        if bal.dissipation is not None:
+            keep = prune(bal, coef)
+            if len(keep) < len(self._diss_active):
+                self._diss_active = [self._diss_active[j] for j in keep]
+                return self._fit(trajectories, scale_trajectories, passive, progress, hold,
+                                 prepared)
+        # 8. relative energy (passive, no scale record): the stated normalisation
+        self.energy_scale_, self.normalised_by_ = "absolute", None
+        if bal.passive and scale_system is None:
+            j = norm_term(lib, coef, forced)
+            coef = coef / coef[j]
+            self.energy_scale_, self.normalised_by_ = "relative", lib.names[j]
+        rho = full_rayleigh(self._diss_lib, self._diss_active, bal, coef)
+        # 9. the model and its report
         record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef,
                            smoothing, trap, hold)
         self.smoothing_, self.trap_ = smoothing, trap
@@ -246,20 +295,23 @@ class LagrangianSINDy:
         self.form_ = bal.form
         self.actuated_ = [c for c in coords if any(c in tr.actuated for tr in
                                                    trajectories + (scale_list or []))]
-        self._set_coefficients(coef, X=bal.X)
+        self._set_coefficients(coef, X=bal.X, rayleigh=rho)
         self.diagnostics_ = diagnose(record)
         return self
 
-    def _scale_system(self, scale_list):
-        """Passive scheme: the actuated record (A_s, b_s) that fixes the energy's scale (eq. 8)."""
+    def _scale_system(self, scale_list, bal):
+        """Passive scheme: the actuated record (A_s, b_s) that fixes the energy's scale (eq. 8);
+        None without one (the energy is then relative).  With dissipation, the record's friction
+        work is that of ρ(ξ) = −pinv(D) A ξ of the passive balance, folded into A_s."""
         if scale_list is None:
-            raise ValueError("the training data are passive (no power fed in), which fixes the "
-                             "energy only up to a factor: pass scale_trajectories, a short "
-                             "actuated record (paper eq. 8)")
-        scale = self._balance(self._prepare(scale_list)[0], passive=False)
+            return None
+        scale = self._balance(self._prepare(scale_list)[0], passive=False, dissipation=False)
         if not np.any(scale.b):
             raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
-        return scale.A, scale.b
+        if bal.dissipation is None:
+            return scale.A, scale.b
+        return fold_scale(bal, scale, dissipation_columns(self._active_dissipation(),
+                                                          self._prepare(scale_list)[0], scale))
 
     def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
@@ -282,7 +334,7 @@ class LagrangianSINDy:
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
         return coef, bal_w, sel_w, adm
 
-    def _set_coefficients(self, coef, X=None):
+    def _set_coefficients(self, coef, X=None, rayleigh=None):
         lib = self.library
         self.coords_ = list(lib.coords.names)
         self.coef_ = np.asarray(coef, float)
@@ -290,7 +342,13 @@ class LagrangianSINDy:
         self.lagrangian_coef_ = legendre(lib, self.coef_, X)
         self.hamiltonian_ = _combine(lib, self.coef_)
         self.lagrangian_ = _combine(lib, self.lagrangian_coef_)
-        self._mechanics = EulerLagrange(lib.coords, self.lagrangian_)
+        dlib = getattr(self, "_diss_lib", None)
+        self.rayleigh_coef_ = (np.zeros(0) if rayleigh is None or dlib is None
+                               else np.asarray(rayleigh, float))
+        self.rayleigh_ = (_combine(dlib, self.rayleigh_coef_) if self.rayleigh_coef_.size
+                          else sp.Integer(0))
+        self._mechanics = EulerLagrange(lib.coords, self.lagrangian_,
+                                        rayleigh=self.rayleigh_ if self.rayleigh_ != 0 else None)
 
     def _check_fitted(self):
         if not hasattr(self, "coef_"):
@@ -300,6 +358,11 @@ class LagrangianSINDy:
     def terms(self, which: str = "hamiltonian") -> dict:
         """``{term name: coefficient}`` of the identified H or L."""
         self._check_fitted()
+        if which == "rayleigh":
+            if getattr(self, "_diss_lib", None) is None:
+                return {}
+            return {self._diss_lib.names[j]: float(c) for j, c in enumerate(self.rayleigh_coef_)
+                    if c != 0}
         coef = self.coef_ if which == "hamiltonian" else self.lagrangian_coef_
         return {self.library.names[j]: float(coef[j]) for j in np.flatnonzero(coef)}
 
@@ -321,8 +384,13 @@ class LagrangianSINDy:
     def __str__(self) -> str:
         if not hasattr(self, "coef_"):
             return "LagrangianSINDy(unfitted)"
-        lines = [f"H = {_fmt(self.hamiltonian_)}", f"L = {_fmt(self.lagrangian_)}",
-                 "equations of motion:"]
+        lines = [f"H = {_fmt(self.hamiltonian_)}", f"L = {_fmt(self.lagrangian_)}"]
+        if getattr(self, "rayleigh_", 0) != 0:
+            lines.append(f"R = {_fmt(self.rayleigh_)}   (friction forces -dR/dq_dot)")
+        if getattr(self, "energy_scale_", "absolute") == "relative":
+            lines.append(f"energy relative: H, L and R up to a constant factor "
+                         f"(normalised: coefficient of {self.normalised_by_} = 1)")
+        lines.append("equations of motion:")
         lines += [f"  {_fmt(e.lhs)} = {_fmt(e.rhs)}" for e in self.equations_of_motion()]
         return "\n".join(lines)
 

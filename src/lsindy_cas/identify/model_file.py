@@ -13,6 +13,7 @@ import numpy as np
 
 from .._io import atomic_write
 from .._version import __version__
+from ..mechanics.rayleigh import check_velocity_only
 from ..symbolic.library import Library
 
 __all__ = ["model_to_dict", "save_model", "load_model"]
@@ -37,6 +38,13 @@ def model_to_dict(model) -> dict:
     }
     if getattr(model, "hold_", None) is not None:
         out["hold"] = model.hold_
+    out["energy_scale"] = getattr(model, "energy_scale_", "absolute")
+    if getattr(model, "normalised_by_", None):
+        out["normalised_by"] = model.normalised_by_
+    if getattr(model, "_diss_lib", None) is not None:      # friction: R and its candidate terms
+        out["rayleigh"] = str(model.rayleigh_)
+        out["rayleigh_terms"] = model.terms("rayleigh")
+        out["dissipation_library"] = model._diss_lib.to_dict()
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -71,7 +79,20 @@ def load_model(cls, path):
     model.actuated_ = list(d.get("actuated", []))
     model._loaded_diagnostics = d.get("diagnostics")
     model.hold_ = d.get("hold")
-    model._set_coefficients(coef)
+    model.energy_scale_ = d.get("energy_scale", "absolute")
+    model.normalised_by_ = d.get("normalised_by")
+    rho = None
+    if "rayleigh_terms" in d:
+        rterms = d["rayleigh_terms"]
+        dlib = (Library.from_dict(d["dissipation_library"]) if "dissipation_library" in d
+                else Library(d["coords"], list(rterms)) if rterms else None)
+        if dlib is not None:
+            check_velocity_only(dlib.coords, dlib.exprs, what=f"{path}: dissipation term")
+            rho = np.zeros(len(dlib))
+            for name, c in rterms.items():
+                rho[dlib.index(name, what=f"{path}: dissipation term")] = float(c)
+            model.dissipation, model._diss_lib = list(dlib.names), dlib
+    model._set_coefficients(coef, rayleigh=rho)
     check_kinetic(model, path)
     return model
 
