@@ -48,6 +48,8 @@ def run(args) -> int:
     with ProgressBar("searching supports", unit="supports") as bar:
         model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
     print(model)
+    if model.energy_scale_ == "relative":
+        print("(no --scale record: add --scale TRAJ..., a short actuated run, for an absolute energy)")
     print()
     print(model.diagnostics_)
     if args.json:
