@@ -134,6 +134,18 @@ def test_oscillator_passive_without_scale_is_relative_and_ode_exact(tmp_path):
     assert back.energy_scale_ == "relative"
 
 
+def test_oscillator_passive_with_scale_record_is_absolute():
+    """Friction in both the free runs and the short actuated scale record (eq. 8): the record's
+    friction work is folded into its balance, so the energy comes out absolute."""
+    s, runs = _oscillator("0.15*s_dot**2", passive=True)
+    scale = s.simulate(x0=(0.1, 0.0), t_end=0.5, u=1.0)
+    lib = Library(["s"], ["s**2", "s_dot**2", "s**4"])
+    model = LagrangianSINDy(lib, dissipation=["s_dot**2"]).fit(runs, scale_trajectories=scale)
+    assert model.energy_scale_ == "absolute"
+    assert model.terms() == pytest.approx({"s**2": 2.5, "s_dot**2": 1.0}, rel=REL)
+    assert model.terms("rayleigh") == pytest.approx({"s_dot**2": 0.15}, rel=REL)
+
+
 def test_negative_dissipation_is_refused():
     """Data that gain energy (anti-damping, R = −0.1 ṡ²): the fit is refused, not printed."""
     s, runs = _oscillator("-0.1*s_dot**2", t_end=2.0)

@@ -110,7 +110,7 @@ class LagrangianSINDy:
     energy_scale_ : str           "absolute", or "relative" (passive data without a scale record:
                                   H, L and R up to one common factor, fixed by ``normalised_by_``)
     normalised_by_ : str or None  relative energy: the term whose coefficient is set to 1 (the
-                                  first prior term, else the first kinetic term of the support)
+                                  first kinetic prior term, else the first kinetic support term)
     """
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
