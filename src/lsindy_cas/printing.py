@@ -250,7 +250,9 @@ def rounded(model):
     coef_h = round_coef(model.coef_, getattr(model, "coef_std_", None))
     coef_l = round_coef(model.lagrangian_coef_, getattr(model, "lagrangian_coef_std_", None))
     L = combine(lib, coef_l)
-    return combine(lib, coef_h), L, EulerLagrange(lib.coords, L).equations()
+    R = getattr(model, "rayleigh_", 0)          # friction forces −∂R/∂q̇ stay in the equations
+    eoms = EulerLagrange(lib.coords, L, rayleigh=R if R != 0 else None).equations()
+    return combine(lib, coef_h), L, eoms
 
 
 def coefficient_table(model, indent: str = "  ") -> str:
@@ -297,16 +299,24 @@ def describe(model, digits: int | None = None, style: str = "pretty") -> str:
     else:
         H, L = model.hamiltonian_, model.lagrangian_
         eoms = model.equations_of_motion()
+    R = getattr(model, "rayleigh_", 0)         # friction: Rayleigh function, forces −∂R/∂q̇
+    note = ([] if getattr(model, "energy_scale_", "absolute") != "relative" else
+            [f"(energy relative: H, L, R up to a constant factor; {model.normalised_by_} has "
+             "coefficient 1)"])
     if style == "latex":
         rows = [rf"H &= {latex(H, digits, coords)}", rf"L &= {latex(L, digits, coords)}"]
+        rows += [rf"R &= {latex(R, digits, coords)}"] if R != 0 else []
         rows += [rf"{latex(e.lhs, digits, coords)} &= {latex(e.rhs, digits, coords)}" for e in eoms]
-        return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
+        return "\n".join(["\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"]
+                         + ["% " + n for n in note])
     if style == "plain":
-        lines = [f"H = {plain(H, digits)}", f"L = {plain(L, digits)}", "equations of motion:"]
+        lines = [f"H = {plain(H, digits)}", f"L = {plain(L, digits)}"]
+        lines += ([f"R = {plain(R, digits)}"] if R != 0 else []) + note + ["equations of motion:"]
         lines += [f"  {plain(e.lhs, digits)} = {plain(e.rhs, digits)}" for e in eoms]
         return "\n".join(lines)
-    blocks = [_labelled("H = ", pretty(H, digits, coords)), _labelled("L = ", pretty(L, digits, coords)),
-              "equations of motion (M q̈ = F):"]
+    blocks = [_labelled("H = ", pretty(H, digits, coords)), _labelled("L = ", pretty(L, digits, coords))]
+    blocks += [_labelled("R = ", pretty(R, digits, coords))] if R != 0 else []
+    blocks += note + ["equations of motion (M q̈ = F):"]
     blocks += [_labelled("  ", pretty(e, digits, coords)) for e in eoms]
     return "\n".join(blocks)
 
@@ -322,3 +332,21 @@ def _labelled(label: str, block: str) -> str:
                 len(lines) // 2)
     pad = " " * len(label)
     return "\n".join((label if i == base else pad) + ln for i, ln in enumerate(lines))
+
+
+def model_text(self) -> str:
+    """What ``print(model)`` shows: H, L (R), the equations of motion, the coefficients ± errors."""
+    from .identify.steps import _fmt
+    if not hasattr(self, "coef_"):
+        return "LagrangianSINDy(unfitted)"
+    H, L, eoms = rounded(self)     # digits from the standard errors
+    lines = [f"H = {_fmt(H, MAX_DIGITS)}", f"L = {_fmt(L, MAX_DIGITS)}"]
+    if getattr(self, "rayleigh_", 0) != 0:
+        lines.append(f"R = {_fmt(self.rayleigh_, MAX_DIGITS)}   (friction forces -dR/dq_dot)")
+    if getattr(self, "energy_scale_", "absolute") == "relative":
+        lines.append(f"energy relative: H, L and R up to a constant factor "
+                     f"(normalised: coefficient of {self.normalised_by_} = 1)")
+    lines.append("equations of motion:")
+    lines += [f"  {_fmt(e.lhs, MAX_DIGITS)} = {_fmt(e.rhs, MAX_DIGITS)}" for e in eoms]
+    table = coefficient_table(self)
+    return "\n".join(lines + ([table] if table else []))

@@ -25,7 +25,6 @@ exit codes:
 
 
 def run(args) -> int:
-    import numpy as np
 
     from .._io import check_writable
     from ..data.trajectory import load_trajectories
@@ -47,13 +46,17 @@ def run(args) -> int:
     for flag, value in (("--terms", args.terms), ("--max-terms", args.max_terms)):
         if value is not None and value > len(lib):
             raise ValueError(f"{flag} {value} is larger than the library size ({len(lib)} terms)")
+    dissipation = split(args.dissipation) or None
+    if dissipation is not None:
+        from ..identify.dissipation import dissipation_library
+        dissipation_library(lib.coords, dissipation)        # bad terms: one line, before the data
+        if args.window is not None:
+            raise ValueError("--dissipation needs the all-windows integral form: drop --window")
     trajs = load_trajectories(args.trajectories, coords)
     scale = load_trajectories(args.scale, coords) if args.scale else None
-    passive = args.passive or all(not np.any(tr.power) for tr in trajs)
-    if passive and scale is None:
-        raise ValueError("the training data are passive (no power fed in), which fixes the energy "
-                         "only up to a factor: add --scale TRAJ..., a short actuated record "
-                         "(paper eq. 8)")
+    if args.form == "derivative" and any(tr.qdd is None for tr in trajs):
+        raise ValueError("--form derivative needs accelerations (<q>_ddot columns) in every "
+                         "trajectory file; use --form integral")
     client = None
     if args.scheduler:            # an unreachable address is one line on stderr, after a timeout
         from ..identify.distributed import connect
@@ -63,7 +66,7 @@ def run(args) -> int:
             raise ValueError(f"--scheduler: {exc}") from None
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=split(args.prior), form=args.form,
                             window=args.window, smoothing=args.smoothing,
-                            max_terms=args.max_terms, hold=args.hold)
+                            max_terms=args.max_terms, hold=args.hold, dissipation=dissipation)
     from ..progress import ProgressBar
     with ProgressBar("searching supports", unit="supports") as bar:
         model.fit(trajs, scale, passive=True if args.passive else None, progress=bar,
@@ -71,6 +74,8 @@ def run(args) -> int:
     if client is not None:
         client.close()
     print(model)
+    if model.energy_scale_ == "relative":
+        print("(no --scale record: add --scale TRAJ..., a short actuated run, for an absolute energy)")
     print()
     print(model.diagnostics_)
     if args.json:
@@ -98,7 +103,13 @@ def add_to(sub) -> None:
     ident.add_argument("--prior", default="", help='terms forced in ("theta_dot**2,cos(theta)")')
     ident.add_argument("--passive", action="store_true",
                        help="the training data are unforced: use the null-space scheme")
-    ident.add_argument("--scale", nargs="+", metavar="TRAJ", help="short actuated record(s) for the scale")
+    ident.add_argument("--scale", nargs="+", metavar="TRAJ",
+                       help="short actuated record(s) for the scale; without one, passive data "
+                       "give the energy up to a constant factor (stated in the output)")
+    ident.add_argument("--dissipation", default="", metavar="TERMS",
+                       help='candidate terms of the Rayleigh dissipation function R over <q>_dot, '
+                       'e.g. "theta_dot**2,Abs(x_dot)" (friction forces -dR/dq_dot; terms the '
+                       "data do not support come out zero)")
     ident.add_argument("--form", choices=["auto", "derivative", "integral"], default="auto",
                        help="energy-balance form (auto: derivative if files carry <q>_ddot)")
     ident.add_argument("--smoothing", choices=["auto", "none"], default="auto",

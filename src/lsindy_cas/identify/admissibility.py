@@ -121,9 +121,13 @@ class Admissibility:
         """All six rules for candidates fitted on ``bal``.
 
         Term shares are judged on the driven balance's columns — for passive data on the actuated
-        scale record's, where the terms' contributions are not cancelling by construction.
+        scale record's, where the terms' contributions are not cancelling by construction (without
+        a record: on the passive balance's own columns, before any dissipation projection).
         """
-        A = scale_system[0] if bal.passive else bal.A
+        if bal.passive and scale_system is not None:
+            A = scale_system[0]
+        else:
+            A = bal.A if bal.raw is None else bal.raw[0]
         return cls(library, bal.X, forced, column_norms(A), balance=bal,
                    scale_system=scale_system, excluded=excluded)
 
@@ -156,6 +160,8 @@ class Admissibility:
         if weak:
             return False, f"term(s) {', '.join(weak)} came out zero (the fit is a smaller model)"
         M = np.einsum("sikp,p->sik", self.hess, coef)
+        if self.balance is not None and self.balance.passive and self.scale_system is None:
+            M = M * np.sign(np.trace(M[0]))    # a null vector without a scale: sign is free
         eig = np.linalg.eigvalsh(M)
         if not np.all(eig[:, 0] > PD_RTOL * np.maximum(np.abs(eig[:, -1]), 1e-300)):
             return False, "kinetic part not positive definite (∂²E/∂q̇² has a non-positive eigenvalue)"

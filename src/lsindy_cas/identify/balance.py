@@ -64,6 +64,10 @@ class EnergyBalance:
         Integral form, per trajectory: how its work integral was computed — "increments"
         (held force × position increments), "quadrature" (held force × trapezoid of q̇),
         "spline" (smooth force) or "none" (no power) — which the noise model needs.
+    dissipation : array (n_rows, r), optional
+        Rayleigh dissipation columns (:mod:`lsindy_cas.identify.dissipation`), rows as ``A``'s.
+        When set, ``A`` and ``b`` are projected off their span and ``raw`` holds the unprojected
+        ``(A, b)``.
     """
 
     A: np.ndarray
@@ -75,6 +79,8 @@ class EnergyBalance:
     weights: np.ndarray | None = None
     centred: bool = False
     work_rules: list | None = None
+    dissipation: np.ndarray | None = None
+    raw: tuple | None = None
 
     @property
     def passive(self) -> bool:

@@ -10,8 +10,9 @@ import sympy as sp
 from .._validate import check_choice, check_int
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
-from ..data.trajectory import Trajectory
 from .diagnostics import FitRecord, constant_force_trap, diagnose
+from .dissipation import dissipation_columns, dissipation_library, fold_scale, full_rayleigh, \
+    norm_term, project, prune
 from ..mechanics.legendre import legendre
 from ..symbolic.library import Library
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
@@ -19,8 +20,8 @@ from .selection import select
 from .status import assess
 from .standard_errors import coefficient_errors
 from ..data.smoothing import force_switches, smooth
-from .uncertainty import corrected_coef, corrected_null, energy_variance, noise_gram, noise_model, \
-    row_gradients, sample_weights
+from .uncertainty import energy_variance, noise_model, row_gradients, sample_weights
+from .steps import _check_trajectories, _corrected, combine, run_variance  # noqa: F401
 
 __all__ = ["LagrangianSINDy"]
 
@@ -34,21 +35,6 @@ _HOLDS = ("auto", "zoh", "smooth")
 # support they will be reported on.
 _REFINE_PASSES = 3
 _RESELECT_PASSES = 2
-
-
-def _check_trajectories(trajectories, coords, what="trajectories") -> list:
-    if isinstance(trajectories, Trajectory):
-        trajectories = [trajectories]
-    try:
-        trajectories = list(trajectories)
-    except TypeError:
-        raise TypeError(f"{what} must be a Trajectory or a list of them") from None
-    if not trajectories:
-        raise ValueError(f"{what} is empty")
-    for tr in trajectories:
-        if not isinstance(tr, Trajectory):
-            raise TypeError(f"{what} must contain Trajectory objects, got {type(tr).__name__}")
-    return [tr.reorder(coords) for tr in trajectories]
 
 
 class LagrangianSINDy:
@@ -83,6 +69,11 @@ class LagrangianSINDy:
         (default): a force that is constant or changes at few samples is held; one that changes
         at most samples is ambiguous — both work integrals are fitted and the one with the
         smaller held-out error is kept.  ``hold_`` says which was used.
+    dissipation : sequence of str or Library, optional
+        Candidate terms of a Rayleigh dissipation function R(q̇) over ``<q>_dot`` (viscous
+        ``theta_dot**2``, ``theta1_dot*theta2_dot``; Coulomb ``Abs(x_dot)``): the balance becomes
+        dE/dt = P − q̇·∂R/∂q̇ and the equations of motion gain the friction forces −∂R/∂q̇
+        (:mod:`lsindy_cas.identify.dissipation`).  Terms the data do not support come out zero.
 
     Attributes (after ``fit``)
     --------------------------
@@ -105,11 +96,17 @@ class LagrangianSINDy:
                                   when no work integral was needed)
     velocities_ : str             "measured", "estimated" (positions only: q̇ from the smoothed
                                   positions, its error carried into the noise model) or "mixed"
+    rayleigh_coef_ : array (r,)   dissipation coefficients ρ (R = Σ ρ_j R_j; zeros when absent)
+    rayleigh_ : sympy.Expr        the identified R(q̇) (0 without friction)
+    energy_scale_ : str           "absolute", or "relative" (passive data without a scale record:
+                                  H, L and R up to one common factor, fixed by ``normalised_by_``)
+    normalised_by_ : str or None  relative energy: the term whose coefficient is set to 1 (the
+                                  first kinetic prior term, else the first kinetic support term)
     """
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
                  window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
-                 hold: str = "auto"):
+                 hold: str = "auto", dissipation=None):
         self.library = library
         self.n_terms = n_terms
         self.prior = prior
@@ -118,6 +115,7 @@ class LagrangianSINDy:
         self.smoothing = smoothing
         self.max_terms = max_terms
         self.hold = hold
+        self.dissipation = dissipation
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
@@ -138,6 +136,9 @@ class LagrangianSINDy:
         check_choice("hold", self.hold, _HOLDS)
         check_choice("smoothing", self.smoothing, _SMOOTHING)
         check_int("window", self.window, low=1, allow_none=True)
+        self._diss_lib = dissipation_library(self.library.coords, self.dissipation)
+        if self._diss_lib is not None and self.window is not None:
+            raise ValueError("dissipation needs the all-windows integral form: leave window unset")
         return sorted(set(forced))
 
     def _form(self, trajectories) -> str:
@@ -145,14 +146,31 @@ class LagrangianSINDy:
             return "derivative" if all(tr.qdd is not None for tr in trajectories) else "integral"
         return self.form
 
-    def _balance(self, trajectories, passive=None, weights=None, noise=None):
-        """The energy balance of ``trajectories``; ``noise``: per run, the noise left in each
-        state column (picks the held-force work rule, see ``balance.cumulative_work``)."""
+    def _balance(self, trajectories, passive=None, weights=None, dissipation=True, noise=None):
+        """The energy balance of ``trajectories`` (with the dissipation columns projected out);
+        ``noise``: per run, the noise left in each state column (picks the held-force work
+        rule, see ``balance.cumulative_work``)."""
         if self._form(trajectories) == "derivative":
-            return derivative_form(self.library, trajectories, passive=passive)
-        return integral_form(self.library, trajectories, window=self.window, passive=passive,
-                             weights=weights, hold=self.hold_ or "auto",
-                             noise=noise)
+            if not all(tr.qdd is not None for tr in trajectories):
+                raise ValueError("form='derivative' needs accelerations <q>_ddot in every "
+                                 "trajectory; use form='integral' (or 'auto')")
+            bal = derivative_form(self.library, trajectories, passive=passive)
+        else:
+            bal = integral_form(self.library, trajectories, window=self.window, passive=passive,
+                                weights=weights, hold=self.hold_ or "auto", noise=noise)
+        lib = self._active_dissipation() if dissipation else None
+        if lib is None:
+            return bal
+        return project(bal, dissipation_columns(lib, trajectories, bal), lib.names)
+
+    def _active_dissipation(self):
+        """The dissipation terms still in the model (a Library), or None."""
+        lib = getattr(self, "_diss_lib", None)
+        active = getattr(self, "_diss_active", None)
+        if lib is None or not active:
+            return None
+        return lib if len(active) == len(lib) else type(lib)(lib.coords,
+                                                            [lib.exprs[j] for j in active])
 
     def _prepare(self, trajectories):
         """States for the balance and their noise variance per row (integral form), or as given."""
@@ -163,18 +181,11 @@ class LagrangianSINDy:
         # One variance per column and run: the per-sample ones (larger at the ends) were measured
         # to worsen the coefficients on the paper's 1 s runs (median error 6 % → 8 % at σ = 1e-3).
         var = np.vstack([np.broadcast_to(v, s.error.shape)
-                         for v, s in zip(self._run_variance(smoothed), smoothed)])
+                         for v, s in zip(run_variance(smoothed, self.smoothing), smoothed)])
         return states, var, smoothed
 
-    def _run_variance(self, smoothed) -> list:
-        """Per run, the noise variance left in each state column (2n,) of the balance's states."""
-        if smoothed is None:
-            return None
-        return [(s.error ** 2).mean(axis=0) if self.smoothing == "auto" else s.noise ** 2
-                for s in smoothed]
-
     def _run_noise(self, smoothed):
-        var = self._run_variance(smoothed)
+        var = run_variance(smoothed, self.smoothing)
         return None if var is None else [np.sqrt(v) for v in var]
 
     def fit(self, trajectories, scale_trajectories=None, passive=None,
@@ -201,6 +212,7 @@ class LagrangianSINDy:
             with using(client):
                 return self.fit(trajectories, scale_trajectories, passive, progress)
         self._validate()
+        self._diss_active = None if self._diss_lib is None else list(range(len(self._diss_lib)))
         coords = self.library.coords.names
         runs = _check_trajectories(trajectories, coords)
         holds = self._holds(runs)
@@ -272,7 +284,7 @@ class LagrangianSINDy:
         # 3. energy balance (and the passive scheme's scale record)
         self._state_noise = self._run_noise(smoothing)
         bal = self._balance(states, passive=passive, noise=self._state_noise)
-        scale_system = self._scale_system(scale_list) if bal.passive else None
+        scale_system = self._scale_system(scale_list, bal) if bal.passive else None
         # 4. the rules a candidate must pass
         trap = constant_force_trap(lib, trajectories, forced) if not bal.passive else None
         excluded = [] if trap is None else trap.excluded
@@ -288,7 +300,21 @@ class LagrangianSINDy:
         if state_var is not None and bal.centred:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
                                                       scale_system, excluded, row_gradients(bal))
-        # 7. the model and its report
+        # 7. dissipation: drop the terms the data do not support and fit again without them
+        if bal.dissipation is not None:
+            keep = prune(bal, coef)
+            if len(keep) < len(self._diss_active):
+                self._diss_active = [self._diss_active[j] for j in keep]
+                return self._fit(trajectories, scale_trajectories, passive, progress, hold,
+                                 prepared)
+        # 8. relative energy (passive, no scale record): the stated normalisation
+        self.energy_scale_, self.normalised_by_ = "absolute", None
+        if bal.passive and scale_system is None:
+            j = norm_term(lib, coef, forced)
+            coef = coef / coef[j]
+            self.energy_scale_, self.normalised_by_ = "relative", lib.names[j]
+        rho = full_rayleigh(self._diss_lib, self._diss_active, bal, coef)
+        # 9. the model and its report
         record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef,
                            smoothing, trap, hold)
         self.smoothing_, self.trap_ = smoothing, trap
@@ -301,24 +327,28 @@ class LagrangianSINDy:
                                                    trajectories + (scale_list or []))]
         kinds = {tr.velocities for tr in trajectories + (scale_list or [])}
         self.velocities_ = kinds.pop() if len(kinds) == 1 else "mixed"
-        self._set_coefficients(coef, X=bal.X)
+        self._set_coefficients(coef, X=bal.X, rayleigh=rho)
         self._set_errors(coefficient_errors(bal, self.coef_, lib, bal.X, scale_system))
         self.diagnostics_ = diagnose(record)
         self.diagnostics_.velocities = self.velocities_
         self._record = record
         return self
 
-    def _scale_system(self, scale_list):
-        """Passive scheme: the actuated record (A_s, b_s) that fixes the energy's scale (eq. 8)."""
+    def _scale_system(self, scale_list, bal):
+        """Passive scheme: the actuated record (A_s, b_s) that fixes the energy's scale (eq. 8);
+        None without one (the energy is then relative).  With dissipation, the record's friction
+        work is that of ρ(ξ) = −pinv(D) A ξ of the passive balance, folded into A_s."""
         if scale_list is None:
-            raise ValueError("the training data are passive (no power fed in), which fixes the "
-                             "energy only up to a factor: pass scale_trajectories, a short "
-                             "actuated record (paper eq. 8)")
+            return None
         states, _, smoothed = self._prepare(scale_list)
-        scale = self._balance(states, passive=False, noise=self._run_noise(smoothed))
+        scale = self._balance(states, passive=False, dissipation=False,
+                              noise=self._run_noise(smoothed))
         if not np.any(scale.b):
             raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
-        return scale.A, scale.b
+        if bal.dissipation is None:
+            return scale.A, scale.b
+        return fold_scale(bal, scale, dissipation_columns(self._active_dissipation(),
+                                                          self._prepare(scale_list)[0], scale))
 
     def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
@@ -342,7 +372,7 @@ class LagrangianSINDy:
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
         return coef, bal_w, sel_w, adm
 
-    def _set_coefficients(self, coef, X=None):
+    def _set_coefficients(self, coef, X=None, rayleigh=None):
         lib = self.library
         self.coords_ = list(lib.coords.names)
         self.coef_ = np.asarray(coef, float)
@@ -350,7 +380,13 @@ class LagrangianSINDy:
         self.lagrangian_coef_ = legendre(lib, self.coef_, X)
         self.hamiltonian_ = combine(lib, self.coef_)
         self.lagrangian_ = combine(lib, self.lagrangian_coef_)
-        self._mechanics = EulerLagrange(lib.coords, self.lagrangian_)
+        dlib = getattr(self, "_diss_lib", None)
+        self.rayleigh_coef_ = (np.zeros(0) if rayleigh is None or dlib is None
+                               else np.asarray(rayleigh, float))
+        self.rayleigh_ = (combine(dlib, self.rayleigh_coef_) if self.rayleigh_coef_.size
+                          else sp.Integer(0))
+        self._mechanics = EulerLagrange(lib.coords, self.lagrangian_,
+                                        rayleigh=self.rayleigh_ if self.rayleigh_ != 0 else None)
 
     def _set_errors(self, errors):
         """Standard errors of H's and L's coefficients (:mod:`.standard_errors`)."""
@@ -366,6 +402,11 @@ class LagrangianSINDy:
     def terms(self, which: str = "hamiltonian") -> dict:
         """``{term name: coefficient}`` of the identified H or L."""
         self._check_fitted()
+        if which == "rayleigh":
+            if getattr(self, "_diss_lib", None) is None:
+                return {}
+            return {self._diss_lib.names[j]: float(c) for j, c in enumerate(self.rayleigh_coef_)
+                    if c != 0}
         coef = self.coef_ if which == "hamiltonian" else self.lagrangian_coef_
         return {self.library.names[j]: float(coef[j]) for j in np.flatnonzero(coef)}
 
@@ -385,14 +426,8 @@ class LagrangianSINDy:
         return simulate_ode(self.ode(), x0, t, u, len(self.coords_))[0]
 
     def __str__(self) -> str:
-        if not hasattr(self, "coef_"):
-            return "LagrangianSINDy(unfitted)"
-        from ..printing import MAX_DIGITS, coefficient_table, rounded
-        H, L, eoms = rounded(self)     # digits from the standard errors
-        lines = [f"H = {_fmt(H, MAX_DIGITS)}", f"L = {_fmt(L, MAX_DIGITS)}", "equations of motion:"]
-        lines += [f"  {_fmt(e.lhs, MAX_DIGITS)} = {_fmt(e.rhs, MAX_DIGITS)}" for e in eoms]
-        table = coefficient_table(self)
-        return "\n".join(lines + ([table] if table else []))
+        from ..printing import model_text
+        return model_text(self)
 
     # ------------------------------------------------------------------ persistence
     def to_dict(self) -> dict:
@@ -412,23 +447,3 @@ class LagrangianSINDy:
         return load_model(cls, path)
 
 
-def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
-    """Coefficients (p,) on ``support`` with the regressor-noise Gram removed."""
-    S = list(support)
-    N = noise_gram(grads, state_var, S, w)
-    coef = np.zeros(bal.A.shape[1])
-    if bal.b is not None:
-        coef[S] = corrected_coef(bal.A, bal.b, S, N)
-        return coef
-    coef[S] = corrected_null(bal.A, S, N, scale_system)
-    return coef
-
-
-def combine(lib: Library, coef) -> sp.Expr:
-    """Σ_j coef_j θ_j over the non-zero coefficients (sympy)."""
-    return sp.Add(*[sp.Float(float(coef[j]), 15) * lib.exprs[j] for j in np.flatnonzero(coef)])
-
-
-def _fmt(expr, digits: int = 4) -> str:
-    """Readable form with coefficients rounded to ``digits`` significant digits."""
-    return str(sp.N(expr, digits))

@@ -13,6 +13,7 @@ import numpy as np
 
 from .._io import atomic_write
 from .._version import __version__
+from ..mechanics.rayleigh import check_velocity_only
 from ..symbolic.library import Library
 
 __all__ = ["model_to_dict", "save_model", "load_model"]
@@ -46,6 +47,13 @@ def model_to_dict(model) -> dict:
                                ("lagrangian_std", model.lagrangian_coef_, model.lagrangian_coef_std_)):
             out[key] = {names[j]: float(std[j]) for j in np.flatnonzero(coef)}
         out["std_method"] = model.std_method_
+    out["energy_scale"] = getattr(model, "energy_scale_", "absolute")
+    if getattr(model, "normalised_by_", None):
+        out["normalised_by"] = model.normalised_by_
+    if getattr(model, "_diss_lib", None) is not None:      # friction: R and its candidate terms
+        out["rayleigh"] = str(model.rayleigh_)
+        out["rayleigh_terms"] = model.terms("rayleigh")
+        out["dissipation_library"] = model._diss_lib.to_dict()
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -85,7 +93,20 @@ def load_model(cls, path):
     if isinstance(status, dict) and status.get("status") in ("ok", "undetermined"):
         model.status_ = status["status"]            # files before the status have none
         model.status_reasons_ = [str(r) for r in status.get("reasons", [])]
-    model._set_coefficients(coef)
+    model.energy_scale_ = d.get("energy_scale", "absolute")
+    model.normalised_by_ = d.get("normalised_by")
+    rho = None
+    if "rayleigh_terms" in d:
+        rterms = d["rayleigh_terms"]
+        dlib = (Library.from_dict(d["dissipation_library"]) if "dissipation_library" in d
+                else Library(d["coords"], list(rterms)) if rterms else None)
+        if dlib is not None:
+            check_velocity_only(dlib.coords, dlib.exprs, what=f"{path}: dissipation term")
+            rho = np.zeros(len(dlib))
+            for name, c in rterms.items():
+                rho[dlib.index(name, what=f"{path}: dissipation term")] = float(c)
+            model.dissipation, model._diss_lib = list(dlib.names), dlib
+    model._set_coefficients(coef, rayleigh=rho)
     if "hamiltonian_std" in d:           # files before the standard errors existed have none
         std = {}
         for key in ("hamiltonian_std", "lagrangian_std"):

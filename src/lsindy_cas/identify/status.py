@@ -93,8 +93,11 @@ def assess(fit, d, simulate) -> tuple[str, list, dict]:
         terms, r, _, why = better[0]
         reasons.append(f"a model the physical rules reject fits {1 / r:.3g}× better than the "
                        f"chosen one ({' + '.join(terms)}: {why}); the library may lack a term")
-    if bal.passive and d.conserved_found:
-        unresolved = _scale_unresolved(fit, d.conserved_found)
+    # a conserved quantity linear in the velocities (a momentum) cannot be mixed into an energy
+    # (the mixture has a velocity-linear term, which admissibility rejects): no ambiguity
+    rivals = [(S, eta) for S, eta in d.conserved_found if not _momentum(fit.library, S, eta)]
+    if bal.passive and rivals:
+        unresolved = _scale_unresolved(fit, rivals)
         checks["scale_resolution"] = unresolved
         if any(u > 0 for u in unresolved):
             reasons.append("the passive data conserve another quantity besides the energy and the "
@@ -108,6 +111,14 @@ def assess(fit, d, simulate) -> tuple[str, list, dict]:
                        "(median over stretches): the energy balances the data but does not move "
                        "like them")
     return (UNDETERMINED if reasons else OK), reasons, checks
+
+
+def _momentum(lib, S, eta) -> bool:
+    """Every term of the conserved quantity Σ η_j θ_j (round-off ones aside) is linear in the
+    velocities."""
+    eta = np.asarray(eta, float)
+    big = np.abs(eta) > 1e-6 * np.max(np.abs(eta))
+    return all(lib.velocity_degree(j) == 1 for j, b in zip(S, big) if b)
 
 
 def _rival(reason) -> bool:
@@ -129,6 +140,12 @@ def _condition(bal, S, scale_system=None) -> float:
         A_s = scale_system[0][:, list(S)]
         A = np.vstack([A / max(np.linalg.norm(A), 1e-300), A_s / max(np.linalg.norm(A_s), 1e-300)])
     sv = np.linalg.svd(normalise_columns(A)[0], compute_uv=False)
+    if bal.passive and scale_system is None:
+        # relative energy (no scale record): the energy's own null direction is the model, fixed
+        # by the normalisation; the conditioning is that of the remaining directions
+        sv = sv[:-1]
+        if sv.size == 0:
+            return 1.0
     return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
 
 

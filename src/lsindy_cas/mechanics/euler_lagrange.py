@@ -3,7 +3,10 @@
 For a time-independent L(q, q̇) with applied generalized forces Q,
 
     d/dt ∂L/∂q̇ − ∂L/∂q = Q   ⇔   M(q, q̇) q̈ = F(q, q̇, Q),
-    M = ∂²L/∂q̇²,   F = Q + ∂L/∂q − (∂²L/∂q̇∂q) q̇.
+    M = ∂²L/∂q̇²,   F = Q + ∂L/∂q − (∂²L/∂q̇∂q) q̇ − ∂R/∂q̇,
+
+with R(q̇) an optional Rayleigh dissipation function (friction; :mod:`.rayleigh`, which also says how
+the ODE smooths a Coulomb sign).
 
 The accelerations are obtained by solving the linear system (``ca.solve``), never by inverting M
 symbolically.
@@ -15,6 +18,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.coords import Coordinates
+from .rayleigh import COULOMB_EPS, check_velocity_only, friction_forces, smooth_sign
 
 __all__ = ["EulerLagrange", "simulate_ode"]
 
@@ -28,16 +32,31 @@ class EulerLagrange:
         Generalized coordinates.
     lagrangian : str or sympy.Expr
         L(q, q̇) over the coordinate names.
+    rayleigh : str or sympy.Expr, optional
+        Rayleigh dissipation function R(q̇) (velocities only); friction forces −∂R/∂q̇.
+    coulomb_eps : float
+        ODE only: ``sign(v)`` of a Coulomb force is smoothed to ``tanh(v/coulomb_eps)``.
     """
 
-    def __init__(self, coords, lagrangian):
+    def __init__(self, coords, lagrangian, rayleigh=None, coulomb_eps: float = COULOMB_EPS):
         self.coords = coords if isinstance(coords, Coordinates) else Coordinates(coords)
         self.lagrangian = self.coords.parse(lagrangian, what="Lagrangian")
         c = self.coords
+        self.rayleigh = (sp.Integer(0) if rayleigh is None
+                         else c.parse(rayleigh, what="Rayleigh function"))
+        if self.rayleigh != 0:
+            check_velocity_only(c, [self.rayleigh], what="Rayleigh function")
+        if not coulomb_eps > 0:
+            raise ValueError(f"coulomb_eps must be positive, got {coulomb_eps}")
+        self.coulomb_eps = float(coulomb_eps)
         L = c.to_casadi(self.lagrangian)
         dL_dqd = ca.gradient(L, c.qd)
         self.M_sx = ca.jacobian(dL_dqd, c.qd)
         self.F_sx = c.Q + ca.gradient(L, c.q) - ca.mtimes(ca.jacobian(dL_dqd, c.q), c.qd)
+        if self.rayleigh != 0:
+            fr = [c.to_casadi(smooth_sign(f, self.coulomb_eps))
+                  for f in friction_forces(c, self.rayleigh)]
+            self.F_sx = self.F_sx - ca.vertcat(*fr)
 
     def mass_matrix(self) -> ca.Function:
         """``M(x)``: (2n,) state -> (n, n) generalized mass matrix ∂²L/∂q̇²."""
@@ -61,6 +80,8 @@ class EulerLagrange:
         p = sp.Matrix([sp.diff(L, v) for v in c.qd_sym])
         M = p.jacobian(qd)
         F = sp.Matrix(c.Q_sym) + sp.Matrix([sp.diff(L, v) for v in c.q_sym]) - p.jacobian(q) * qd
+        if self.rayleigh != 0:                   # exact friction forces (Coulomb: sign(v))
+            F = F - sp.Matrix(friction_forces(c, self.rayleigh))
         return M, F
 
     def equations(self) -> list:

@@ -17,6 +17,7 @@ import sympy as sp
 from ..symbolic.coords import Coordinates
 from ..data.trajectory import Trajectory
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
+from ..mechanics.rayleigh import COULOMB_EPS
 
 __all__ = ["MechanicalSystem", "spherical_pendulum", "double_pendulum", "cart_pendulum",
            "mass_spring", "PAPER_SYSTEMS"]
@@ -39,6 +40,13 @@ class MechanicalSystem:
         The coordinate a scalar input ``u`` acts on (Q_<actuated> = u).
     x0 : tuple
         The paper's initial state ``[q, q̇]``.
+    params : dict
+        The physical parameters (for reports).
+    rayleigh : str, optional
+        True Rayleigh dissipation function R(q̇) (friction forces −∂R/∂q̇); None: no friction.
+    coulomb_eps : float
+        Simulation only: a Coulomb force's sign(v) is integrated as tanh(v/coulomb_eps)
+        (:mod:`lsindy_cas.mechanics.rayleigh`).
     """
 
     name: str
@@ -48,6 +56,8 @@ class MechanicalSystem:
     actuated: str
     x0: tuple
     params: dict = field(default_factory=dict)
+    rayleigh: str | None = None
+    coulomb_eps: float = COULOMB_EPS
 
     def __post_init__(self):
         self._c = Coordinates(self.coords)
@@ -55,7 +65,10 @@ class MechanicalSystem:
             raise ValueError(f"actuated coordinate {self.actuated!r} is not one of {self._c.names}")
         self._T = self._c.parse(self.kinetic, what="kinetic energy")
         self._V = self._c.parse(self.potential, what="potential energy")
-        self._el = EulerLagrange(self._c, self._T - self._V)
+        self._R = None if self.rayleigh is None else self._c.parse(self.rayleigh,
+                                                                    what="Rayleigh function")
+        self._el = EulerLagrange(self._c, self._T - self._V, rayleigh=self._R,
+                                 coulomb_eps=self.coulomb_eps)
 
     @property
     def hamiltonian(self) -> sp.Expr:

@@ -1,0 +1,214 @@
+"""Rayleigh dissipation in the energy balance: dE/dt = P − q̇·∂R/∂q̇,  R = Σ_j ρ_j R_j(q̇).
+
+Each candidate term R_j contributes a column c_j = q̇·∂R_j/∂q̇ (its dissipated power per unit
+coefficient; a Coulomb term |v| gives |v| exactly): the derivative form adds c_j to the energy
+columns, the integral form its time integral over each window (centred per run as the energy
+columns, :mod:`lsindy_cas.identify.balance`).  ∫ c_j dt is taken by Simpson's rule on
+``SUBSTEPS`` sub-intervals of every sampling interval with the states interpolated by a cubic
+spline: 4th order where c_j is smooth, and the kink of |v| at a velocity reversal costs only
+O((h/SUBSTEPS)²) once per reversal.
+
+How the search sees them.  The dissipation columns are in every model, like prior terms: least
+squares with columns that are always present is least squares on everything projected off their
+span (Frisch–Waugh–Lovell), so the balance handed to the energy search is ``P⊥A ξ = P⊥b`` (or
+``P⊥A ξ ≈ 0`` for passive data) and every part of the search, selection, errors-in-variables and
+diagnostics works unchanged.  Given the energy coefficients ξ, the dissipation coefficients are
+ρ = argmin ‖D ρ − (b − A ξ)‖.  Terms the data do not support are then removed one at a time
+(least significant first, :func:`prune`) and the model is refitted without them, so they come out
+exactly zero.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..mechanics.rayleigh import check_velocity_only
+from ..symbolic.library import Library
+from .admissibility import REDUCIBLE_TOL
+from .uncertainty import T_CRIT, Jackknife
+
+__all__ = ["full_rayleigh", "fold_scale", "norm_term", "dissipation_library", "power_columns", "dissipation_columns", "project", "rayleigh_coef",
+           "prune", "check_dissipation", "SUBSTEPS", "COLLINEAR_RTOL"]
+
+SUBSTEPS = 8
+# Dissipation columns count as inseparable when the smallest singular value of the column-
+# normalised block is below this fraction of the largest (round-off level: the data cannot tell
+# the terms apart, e.g. v² and |v| on a run at constant speed).
+COLLINEAR_RTOL = 1e-7
+# A fitted R dissipates no negative power beyond round-off: min power ≥ −NEG_RTOL · max |power|.
+NEG_RTOL = 1e-9
+
+
+def dissipation_library(coords, terms) -> Library | None:
+    """The candidate terms of R as a :class:`Library` (None for none); velocities only."""
+    if terms is None:
+        return None
+    if isinstance(terms, Library):
+        lib = terms
+        if lib.coords.names != list(coords.names):
+            raise ValueError(f"dissipation library coordinates {lib.coords.names} differ from the "
+                             f"energy library's {list(coords.names)}")
+    else:
+        terms = [terms] if isinstance(terms, str) else list(terms)
+        if not terms:
+            return None
+        lib = Library(coords, [_named(t, i) for i, t in enumerate(terms)])
+    check_velocity_only(lib.coords, lib.exprs)
+    return lib
+
+
+def _named(t, i):
+    if not isinstance(t, str) and not hasattr(t, "free_symbols"):
+        raise TypeError(f"dissipation term #{i + 1} must be a string, got {type(t).__name__}")
+    return t
+
+
+def power_columns(lib: Library, X) -> np.ndarray:
+    """c_j = q̇·∂R_j/∂q̇ at states X: (n_samples, r)."""
+    X = np.atleast_2d(np.asarray(X, float))
+    n = lib.coords.n
+    return np.einsum("si,sij->sj", X[:, n:], lib.dtheta_dqd(X))
+
+
+def _cumulative(lib: Library, tr) -> np.ndarray:
+    """∫_{t_0}^{t_i} c_j dt per sample: (n_samples, r), Simpson on SUBSTEPS sub-intervals."""
+    from scipy.interpolate import CubicSpline
+
+    t = tr.t
+    h = np.diff(t)
+    s = np.arange(SUBSTEPS + 1) / SUBSTEPS
+    tf = (t[:-1, None] + h[:, None] * s[None, :]).ravel()
+    Xf = CubicSpline(t, tr.X, axis=0)(tf)
+    Xf[::SUBSTEPS + 1] = tr.X[:-1]                    # sample points exact
+    Xf[SUBSTEPS::SUBSTEPS + 1] = tr.X[1:]
+    c = power_columns(lib, Xf).reshape(len(h), SUBSTEPS + 1, -1)
+    w = np.ones(SUBSTEPS + 1)
+    w[1:-1:2], w[2:-1:2] = 4.0, 2.0
+    inc = np.einsum("k,ikj->ij", w, c) * (h / (3 * SUBSTEPS))[:, None]
+    return np.vstack([np.zeros((1, c.shape[2])), np.cumsum(inc, axis=0)])
+
+
+def dissipation_columns(lib: Library, trajectories, bal) -> np.ndarray:
+    """Rows of the dissipation columns matching the balance ``bal``'s rows: (n_rows, r)."""
+    if bal.form == "derivative":
+        return np.vstack([power_columns(lib, tr.X) for tr in trajectories])
+    if not bal.centred:
+        raise ValueError("dissipation needs the all-windows integral form (window=None)")
+    out, w_all, pos = [], bal.weights, 0
+    for tr in trajectories:
+        C = _cumulative(lib, tr)
+        w = np.ones(tr.n_samples) if w_all is None else w_all[pos:pos + tr.n_samples]
+        pos += tr.n_samples
+        out.append(np.sqrt(w)[:, None] * (C - (w @ C) / w.sum()))
+    return np.vstack(out)
+
+
+def project(bal, Dd: np.ndarray, names):
+    """The balance with ``A``, ``b`` projected off the span of the dissipation columns ``Dd``."""
+    s = np.linalg.norm(Dd, axis=0)
+    zero = [names[j] for j in np.flatnonzero(s == 0)]
+    if zero:
+        raise ValueError(f"dissipation term(s) {', '.join(zero)} dissipate nothing on the data "
+                         "(the velocities they use never move)")
+    U, sv, _ = np.linalg.svd(Dd / s, full_matrices=False)
+    if sv[-1] < COLLINEAR_RTOL * sv[0]:
+        raise ValueError("the data cannot separate the dissipation terms "
+                         f"{', '.join(names)}: they dissipate proportional power on these runs "
+                         "(too short or too uniform data); drop a term or add varied runs")
+    A = bal.A - U @ (U.T @ bal.A)
+    b = None if bal.b is None else bal.b - U @ (U.T @ bal.b)
+    return replace(bal, A=A, b=b, dissipation=Dd, raw=(bal.A, bal.b))
+
+
+def rayleigh_coef(bal, coef) -> np.ndarray:
+    """Dissipation coefficients ρ (r,) that go with energy coefficients ``coef`` on ``bal``."""
+    A, b = bal.raw
+    rhs = -(A @ coef) if b is None else b - A @ coef
+    s = np.linalg.norm(bal.dissipation, axis=0)
+    return np.linalg.lstsq(bal.dissipation / s, rhs, rcond=None)[0] / s
+
+
+def significance(bal, coef) -> np.ndarray:
+    """Jackknife |t| (r,) of the dissipation coefficients fitted jointly with the energy support."""
+    A, b = bal.raw
+    S = list(np.flatnonzero(coef))
+    r = bal.dissipation.shape[1]
+    joint = replace(bal, A=np.hstack([A[:, S], bal.dissipation]), b=b, dissipation=None, raw=None)
+    if b is None:       # passive: replicate and full null vectors in the jackknife's own scaling
+        return Jackknife(joint).t(list(range(len(S) + r)))[len(S):]
+    full = np.r_[coef[S], rayleigh_coef(bal, coef)]
+    return Jackknife(joint).t(list(range(len(S) + r)), full)[len(S):]
+
+
+def prune(bal, coef) -> list:
+    """Indices (into the balance's dissipation columns) of the terms the data support.
+
+    A term goes when its share of the balance (|ρ_j|·‖c_j‖ against the largest term's) is below
+    REDUCIBLE_TOL — round-off on exact data, the rule the energy terms meet in the search — or,
+    least significant first, while its jackknife |t| < T_CRIT (the test the energy terms pass,
+    :mod:`lsindy_cas.identify.uncertainty`); the others are refitted each time.
+    """
+    keep = list(range(bal.dissipation.shape[1]))
+    energy_share = np.max(np.abs(coef) * np.linalg.norm(bal.raw[0], axis=0))
+    while keep:
+        sub = replace(bal, dissipation=bal.dissipation[:, keep])
+        share = np.abs(rayleigh_coef(sub, coef)) * np.linalg.norm(sub.dissipation, axis=0)
+        j = int(np.argmin(share))
+        if share[j] <= REDUCIBLE_TOL * max(energy_share, share.max()):
+            keep.pop(j)
+            continue
+        t = significance(sub, coef)
+        j = int(np.argmin(t))
+        if t[j] >= T_CRIT:
+            break
+        keep.pop(j)
+    return keep
+
+
+def full_rayleigh(lib, active, bal, coef):
+    """Dissipation coefficients (r,) over all candidate terms of ``lib`` (zeros for the dropped
+    ones; None without a dissipation library), checked by :func:`check_dissipation`."""
+    if lib is None:
+        return None
+    rho = np.zeros(len(lib))
+    if bal.dissipation is not None:
+        rho[active] = rayleigh_coef(bal, coef)
+    check_dissipation(lib, rho, bal.X)
+    return rho
+
+
+def fold_scale(bal, scale, Ds):
+    """Passive scheme with friction: the scale record's balance (A_s, b_s) with the friction work
+    of ρ(ξ) = −pinv(D) A ξ (the passive balance's dissipation) folded into A_s."""
+    B = np.linalg.lstsq(bal.dissipation, bal.raw[0], rcond=None)[0]     # ρ = −B ξ
+    return scale.A - Ds @ B, scale.b
+
+
+def norm_term(library, coef, forced) -> int:
+    """Relative energy (passive data, no scale record): the term whose coefficient is set to 1 —
+    the first kinetic (quadratic in q̇) prior term in library order, else the first kinetic term
+    of the support.  A kinetic term keeps the sign physical: M = ∂²E/∂q̇² ≻ 0 after the division."""
+    kinetic = [j for j in np.flatnonzero(coef) if library.velocity_degree(j) == 2]
+    for j in [j for j in sorted(forced) if j in kinetic] + kinetic:
+        return int(j)
+    raise ValueError("the passive energy has no kinetic (velocity-quadratic) term to normalise by")
+
+
+def check_dissipation(lib: Library, rho, X) -> None:
+    """Refuse a fitted R that creates energy: dissipated power < 0 somewhere on the data, or a
+    viscous (quadratic) part that is not positive semidefinite."""
+    if not np.any(rho):
+        return
+    power = power_columns(lib, X) @ rho
+    top = max(np.max(np.abs(power)), 1e-300)
+    if power.min() < -NEG_RTOL * top:
+        raise ValueError("the fitted dissipation is negative (energy created, dissipated power "
+                         f"{power.min():.3g} W at a sample): the data do not support this friction "
+                         "model; check the dissipation terms and the sign of the applied forces")
+    step = max(1, len(X) // 400)
+    H = np.einsum("sikp,p->sik", lib.d2theta_dqd2(X[::step]), rho)
+    eig = np.linalg.eigvalsh(H)
+    if eig[:, 0].min() < -1e-9 * max(np.abs(eig).max(), 1e-300):
+        raise ValueError("the fitted viscous friction is not positive semidefinite (∂²R/∂q̇² has a "
+                         "negative eigenvalue): refused, it would create energy")
