@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from .._validate import check_choice, check_int
+from .._validate import check_choice, check_int, check_real
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from ..data.trajectory import Trajectory
@@ -102,7 +102,7 @@ class LagrangianSINDy:
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
                  window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
-                 hold: str = "auto"):
+                 hold: str = "auto", time_limit: float | None = None):
         self.library = library
         self.n_terms = n_terms
         self.prior = prior
@@ -111,6 +111,7 @@ class LagrangianSINDy:
         self.smoothing = smoothing
         self.max_terms = max_terms
         self.hold = hold
+        self.time_limit = time_limit
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
@@ -131,6 +132,7 @@ class LagrangianSINDy:
         check_choice("hold", self.hold, _HOLDS)
         check_choice("smoothing", self.smoothing, _SMOOTHING)
         check_int("window", self.window, low=1, allow_none=True)
+        check_real("time_limit", self.time_limit, positive=True, allow_none=True)
         return sorted(set(forced))
 
     def _form(self, trajectories) -> str:
@@ -229,7 +231,7 @@ class LagrangianSINDy:
                  if state_var is not None and bal.centred else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
                      scale_system=scale_system, max_terms=self.max_terms, noise=noise,
-                     progress=progress)
+                     progress=progress, time_limit=self.time_limit)
         coef = sel.coef
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
         if state_var is not None and bal.centred:

@@ -44,6 +44,7 @@ import numpy as np
 
 from .balance import EnergyBalance
 from .fitting import null_vector
+from .bnb import branch_and_bound
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 
@@ -185,20 +186,20 @@ class _Columns:
         return out
 
 
-def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None):
-    """Best admissible k-support (exhaustive, or beam from ``prev``); SearchResult in full indices."""
+def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
+              time_limit=None):
+    """Best admissible k-support (exhaustive up to EXHAUSTIVE supports, else branch and bound);
+    SearchResult in full indices.  ``prev`` is unused (kept for callers)."""
     p = bal.A.shape[1]
     A, D = bal.A[:, cols.keep], bal.D[:, cols.keep]
     f_loc = cols.local(forced)
     adm = None if admissible is None else (
         lambda S, coef: admissible(cols.full(S), cols.full_coef(coef, p)))
     n_free = len(cols.keep) - len(f_loc)
-    beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE
-    if beam and (prev is None or prev.search is None or prev.search.supports is None):
-        raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms are too many to "
-                         "score without a smaller model to extend")
+    beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score: branch and bound
     if beam:
-        res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
+        res = branch_and_bound(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
+                               scale_system=scale_system, time_limit=time_limit, progress=progress)
     else:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress)
@@ -235,7 +236,7 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
 
 def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible: Callable | None = None,
            scale_system=None, exclude=(), max_terms: int | None = None, noise=None,
-           progress: Callable | None = None) -> Selection:
+           progress: Callable | None = None, time_limit: float | None = None) -> Selection:
     """Choose the support (and k when ``n_terms`` is None) of the energy.
 
     Parameters
@@ -257,6 +258,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     noise : NoiseModel, optional
         Expected noise of the rows (driven data): enables the discrepancy cap on k.
     progress : callable ``(n_done, n_total)``, optional
+    time_limit : float, optional
+        Seconds allowed to each branch-and-bound search (see :mod:`lsindy_cas.identify.bnb`).
 
     Returns
     -------
@@ -269,7 +272,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     cols = _Columns(p, exclude)
     folds = fold_ids(bal)
     if n_terms is not None:
-        res, _ = _search_k(bal, int(n_terms), forced, cols, admissible, scale_system, progress, None)
+        res, _ = _search_k(bal, int(n_terms), forced, cols, admissible, scale_system, progress, None,
+                           time_limit)
         cv, per = cv_error(bal, res.support, folds)
         step = Step(int(n_terms), res.support, res.coef, res.score, cv, per, res,
                     chi=_chi(bal, res, noise))
@@ -281,7 +285,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     steps, best, prev, reasons, fits = [], None, None, [], None
     for k in range(k_lo, k_hi + 1):
         try:
-            res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev)
+            res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev,
+                                  time_limit)
         except ValueError as exc:        # no admissible k-term model: try the next k
             reasons.append(f"k = {k}: {exc}")
             prev = None
