@@ -13,6 +13,8 @@ Trajectory files: CSV (header row) or NPZ with columns t, <q>, <q>_dot, optional
 
 
 def run(args) -> int:
+    import sys
+
     import numpy as np
 
     from .._io import check_writable
@@ -24,6 +26,8 @@ def run(args) -> int:
                         ("--window", args.window)):
         if value is not None and value < 1:
             raise ValueError(f"{flag} must be a positive integer, got {value}")
+    if args.time_limit is not None and not 0 < args.time_limit < float("inf"):   # and nan
+        raise ValueError(f"--time-limit must be positive (seconds), got {args.time_limit}")
     if args.json:
         check_writable(args.json, "--json")
     lib = library(args)
@@ -40,10 +44,14 @@ def run(args) -> int:
                          "(paper eq. 8)")
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=split(args.prior), form=args.form,
                             window=args.window, smoothing=args.smoothing,
-                            max_terms=args.max_terms, hold=args.hold)
+                            max_terms=args.max_terms, hold=args.hold, time_limit=args.time_limit)
     from ..progress import ProgressBar
     with ProgressBar("searching supports", unit="supports") as bar:
         model.fit(trajs, scale, passive=True if args.passive else None, progress=bar)
+    res = model.search_
+    if not res.proven:              # time limit or Ctrl-C in the branch and bound
+        print(f"search not proven: best admissible support found in {res.seconds:.1f} s "
+              f"({res.nodes:,} nodes), optimality gap {res.gap:.3g}", file=sys.stderr)
     print(model)
     print()
     print(model.diagnostics_)
@@ -82,6 +90,10 @@ def add_to(sub) -> None:
                        help="automatic k: the largest k tried")
     ident.add_argument("--window", type=int, default=None, metavar="N",
                        help="integral form: windows of N samples (default: every window of every run)")
+    ident.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                       help="branch and bound (libraries too large to score every support): stop "
+                       "each search after SECONDS with the best admissible support found, marked "
+                       "not proven with its optimality gap (Ctrl-C does the same)")
     ident.add_argument("--json", metavar="OUT.json",
                        help="write the model file here (its folder must exist)")
     ident.set_defaults(func=run)

@@ -175,7 +175,7 @@ def _suffix_explained(Gd, cd, stop_at: float) -> np.ndarray:
 class _Search:
     """State of one branch and bound (see the module notes)."""
 
-    def __init__(self, A, b, k, forced, admissible, D, scale_system, tol, n_report):
+    def __init__(self, A, b, k, forced, admissible, D, scale_system, tol, n_report, screen=True):
         self.A, self.b, self.k = A, b, k
         self.forced = [int(j) for j in forced]
         self.admissible, self.scale_system, self.tol = admissible, scale_system, tol
@@ -190,7 +190,8 @@ class _Search:
             self.GD = Dn.T @ Dn
         p = A.shape[1]
         free = [j for j in range(p) if j not in set(self.forced)]
-        self.order = screening_order(self.G, self.c, self.forced, free, k, self.GD)
+        self.order = (screening_order(self.G, self.c, self.forced, free, k, self.GD) if screen
+                      else np.array(free, dtype=np.int64))
         self.r = k - len(self.forced)
         self.incumbent, self.winner, self.null_dim = np.inf, None, 0
         self.candidates, self.n_reducible, self.n_examined = [], 0, 0
@@ -346,7 +347,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                      admissible: Callable | None = None, D: np.ndarray | None = None,
                      scale_system: tuple | None = None, time_limit: float | None = None,
                      tol: float = SCORE_RESOLUTION, n_report: int = 10,
-                     progress: Callable | None = None) -> SearchResult:
+                     progress: Callable | None = None, screen: bool = True) -> SearchResult:
     """Best admissible k-term support of ``A ξ ≈ b`` (or of a null vector) by branch and bound.
 
     Same inputs and result as :func:`lsindy_cas.identify.search.best_subset`, plus a certificate
@@ -363,6 +364,9 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     progress : callable ``(n_done, n_total)``, optional
         Called with (nodes expanded, 0) a few times a second; its ``status(text)`` method, if it has
         one, receives the current gap, best score and elapsed time.
+    screen : bool
+        Order the free terms by :func:`screening_order` (default) or keep the library's order
+        (for measuring what the screening buys; the answer is the same).
 
     Returns
     -------
@@ -385,8 +389,10 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         from .search import best_subset
         return best_subset(A, b, k, forced, admissible=admissible, D=D, scale_system=scale_system,
                            n_report=n_report)
-    s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report)
+    s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, screen)
     lower, proven, seconds, interrupted = s.run(time_limit, progress)
+    if s.winner is None and interrupted:
+        raise KeyboardInterrupt            # nothing to return: let the caller stop
     if s.winner is None:
         why = "; ".join(sorted({c.reason for c in s.candidates if c.reason}))
         raise ValueError(f"no physically admissible {k}-term model "

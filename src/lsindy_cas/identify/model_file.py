@@ -37,6 +37,10 @@ def model_to_dict(model) -> dict:
     }
     if getattr(model, "hold_", None) is not None:
         out["hold"] = model.hold_
+    res = getattr(model, "search_", None)
+    if res is not None:            # how the support was found, and whether it is proven best
+        out["search"] = {"method": res.method, "proven": bool(res.proven), "gap": float(res.gap),
+                         "nodes": int(res.nodes), "supports_scored": int(res.n_supports)}
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file

@@ -1,8 +1,8 @@
 """Scale-free model selection: the support *and* the number of terms k, with physical admissibility.
 
 For each k the best admissible support comes from :func:`lsindy_cas.identify.search.best_subset` (all
-k-supports scored by a scale-free criterion) or, for large libraries, from a beam of one-term
-extensions; both visit their candidates through :func:`lsindy_cas.identify.search.visit`, so a
+k-supports scored by a scale-free criterion) or, for large libraries, from the branch and bound
+of :mod:`lsindy_cas.identify.bnb` (exact, with a certificate) or a beam; all visit their candidates through :func:`lsindy_cas.identify.search.visit`, so a
 support gets the same coefficients on either path.  Admissible means passing every rule of
 :mod:`lsindy_cas.identify.admissibility` (an energy, no undetermined term, every coefficient
 significantly non-zero in a block jackknife).  k itself is chosen on held-out data: whole
@@ -31,8 +31,13 @@ on the paper's 1 s runs at σ = 1e-3: cart-pendulum — the 4-term energy has χ
 6-term imitations smaller held-out errors; double pendulum — the energy χ = 1.0–1.7, the 7-term
 imitation held-out errors 10× smaller but χ = 2.1–3.3.
 
-Where scoring every support is too much (more than ``EXHAUSTIVE`` supports) the candidates are the
-one-term extensions of the best ``BEAM`` supports of the level below.
+Where scoring every support is too much (more than ``EXHAUSTIVE`` supports): when k is given,
+branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given), and so in
+the automatic scan of k when no smaller model is there to extend and a ``time_limit`` is given
+(without one that k is skipped, as before); otherwise the candidates are the one-term extensions
+of the best ``BEAM`` supports of the level below (fast, not exact: above the true k every
+near-perfect support is a smaller one in disguise, which an exact search of the best *admissible*
+support would have to rule out one by one).
 """
 from __future__ import annotations
 
@@ -76,7 +81,7 @@ class Step:
     cv: float
     cv_folds: np.ndarray = field(repr=False)
     search: SearchResult | None = field(default=None, repr=False)
-    beam: bool = False
+    beam: bool = False          # found by the beam or branch and bound (not every support scored)
     chi: float = float("nan")
 
 
@@ -187,17 +192,24 @@ class _Columns:
 
 
 def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
-              time_limit=None):
-    """Best admissible k-support (exhaustive up to EXHAUSTIVE supports, else branch and bound);
-    SearchResult in full indices.  ``prev`` is unused (kept for callers)."""
+              time_limit=None, automatic=False):
+    """Best admissible k-support, SearchResult in full indices: exhaustive up to EXHAUSTIVE
+    supports; beyond, the beam from ``prev`` (automatic k) or else branch and bound."""
     p = bal.A.shape[1]
     A, D = bal.A[:, cols.keep], bal.D[:, cols.keep]
     f_loc = cols.local(forced)
     adm = None if admissible is None else (
         lambda S, coef: admissible(cols.full(S), cols.full_coef(coef, p)))
     n_free = len(cols.keep) - len(f_loc)
-    beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score: branch and bound
-    if beam:
+    beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score every support
+    can_extend = prev is not None and prev.search is not None and prev.search.supports is not None
+    if beam and automatic and not can_extend and time_limit is None:
+        raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms are too many to "
+                         "score without a smaller model to extend (give a time limit to search "
+                         "them by branch and bound)")
+    if beam and automatic and can_extend:
+        res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
+    elif beam:                                           # fixed k, or no smaller model to extend
         res = branch_and_bound(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                                scale_system=scale_system, time_limit=time_limit, progress=progress)
     else:
@@ -286,7 +298,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     for k in range(k_lo, k_hi + 1):
         try:
             res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev,
-                                  time_limit)
+                                  time_limit, automatic=True)
         except ValueError as exc:        # no admissible k-term model: try the next k
             reasons.append(f"k = {k}: {exc}")
             prev = None
@@ -299,6 +311,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
             fits = step                  # the discrepancy principle: enough terms for the noise
         if best is None or _better(step, best):
             best = step
+        if res.interrupted:              # Ctrl-C in the branch and bound: no further k
+            break
         if k - best.k >= 2 or (fits is not None and k > fits.k):
             break
     if best is None:
