@@ -104,7 +104,7 @@ def main(argv=None):
         for screen in (True, False):
             res, sec = timed(lambda: branch_and_bound(bal.A, bal.b, k, admissible=adm,
                                                       screen=screen, time_limit=limit))
-            rows.append(row(name, "bnb" if screen else "bnb, library order", res, sec, truth, n_all))
+            rows.append(row(name, "bnb, stepwise screening" if screen else "bnb", res, sec, truth, n_all))
         if name == "spherical" and not args.quick:
             res, sec = timed(lambda: loop_search(bal.A, bal.b, k, adm))
             rows.append(row(name, "paper-style loop", res, sec, truth, n_all))

@@ -1,7 +1,8 @@
 """Exact best subset by branch and bound: the best admissible k-support without enumerating C(p, k).
 
 The supports containing the forced (prior) terms are the leaves of a tree over the free terms taken
-in a *screening order* (likely terms first, :func:`screening_order`).  A node fixes the terms I it
+in the library's order (low degrees first), or optionally a *screening order* (forward stepwise
+first, :func:`screening_order`).  A node fixes the terms I it
 has chosen and the position of the last one; its subtree holds every support I ∪ T with T drawn
 from the terms after that position (the allowed set F).  Every support of a subtree is a subset of
 U = forced ∪ I ∪ F, which gives a lower bound on its score valid for the whole subtree:
@@ -347,7 +348,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                      admissible: Callable | None = None, D: np.ndarray | None = None,
                      scale_system: tuple | None = None, time_limit: float | None = None,
                      tol: float = SCORE_RESOLUTION, n_report: int = 10,
-                     progress: Callable | None = None, screen: bool = True) -> SearchResult:
+                     progress: Callable | None = None, screen: bool = False) -> SearchResult:
     """Best admissible k-term support of ``A ξ ≈ b`` (or of a null vector) by branch and bound.
 
     Same inputs and result as :func:`lsindy_cas.identify.search.best_subset`, plus a certificate
@@ -365,8 +366,11 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         Called with (nodes expanded, 0) a few times a second; its ``status(text)`` method, if it has
         one, receives the current gap, best score and elapsed time.
     screen : bool
-        Order the free terms by :func:`screening_order` (default) or keep the library's order
-        (for measuring what the screening buys; the answer is the same).
+        Order the free terms by :func:`screening_order` instead of the library's order (default;
+        a polynomial library lists low degrees first).  The answer is the same; measured on the
+        paper's clean 1 s runs without priors the library order is faster: spherical k = 3, 16
+        nodes / 1.1 s against 416 / 5.9 s; cart k = 4, proven in 499 nodes / 8.3 s against nothing
+        admissible found in 15 s (benchmarks/bench_bnb.py).
 
     Returns
     -------
