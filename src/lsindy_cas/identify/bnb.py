@@ -52,6 +52,7 @@ SCORE_RESOLUTION = 1e-12
 SKIP_TOL = 1e-13
 _POOL = 2000               # scored leaves kept as runners-up (best first)
 _REPORT_EVERY = 0.25       # seconds between progress reports
+_MAX_OPEN = 2_000_000      # open nodes kept (memory, ~0.5 GB): beyond, stop as not proven
 
 
 @dataclass
@@ -323,7 +324,8 @@ class _Search:
                 if progress is not None and now - last_report > _REPORT_EVERY:
                     last_report = now
                     self._report(progress, heap, now - t0)
-                if time_limit is not None and now - t0 > time_limit and heap:
+                if heap and (len(heap) > _MAX_OPEN or
+                             (time_limit is not None and now - t0 > time_limit)):
                     stopped = True
                     break
         except KeyboardInterrupt:

@@ -41,6 +41,8 @@ def model_to_dict(model) -> dict:
     if res is not None:            # how the support was found, and whether it is proven best
         out["search"] = {"method": res.method, "proven": bool(res.proven), "gap": float(res.gap),
                          "nodes": int(res.nodes), "supports_scored": int(res.n_supports)}
+    elif getattr(model, "_loaded_search", None) is not None:
+        out["search"] = model._loaded_search
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -74,6 +76,7 @@ def load_model(cls, path):
     model = cls(lib, n_terms=max(1, len(terms)), prior=d.get("prior", ()))
     model.actuated_ = list(d.get("actuated", []))
     model._loaded_diagnostics = d.get("diagnostics")
+    model._loaded_search = d.get("search")
     model.hold_ = d.get("hold")
     model._set_coefficients(coef)
     check_kinetic(model, path)
