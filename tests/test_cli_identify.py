@@ -77,6 +77,10 @@ BASE = ["--coords", "x,theta", "--features", "cos(theta),sin(theta),theta_dot,x,
     ("k too large", ["GOOD", *BASE, "--terms", "999"], "library size"),
     ("bad terms", ["GOOD", *BASE, "--terms", "four"], "invalid int"),
     ("missing coords", ["GOOD", "--features", "x"], "required"),
+    ("time limit zero", ["GOOD", *BASE, "--terms", "4", "--time-limit", "0"], "--time-limit must be positive"),
+    ("time limit negative", ["GOOD", *BASE, "--time-limit", "-5"], "--time-limit must be positive"),
+    ("time limit nan", ["GOOD", *BASE, "--time-limit", "nan"], "--time-limit must be positive"),
+    ("time limit text", ["GOOD", *BASE, "--time-limit", "soon"], "invalid float"),
 ])
 def test_cli_bad_input_one_line_exit_2(good_csv, case, extra, needle):
     args = [str(good_csv) if a == "GOOD" else a for a in extra]

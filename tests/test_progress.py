@@ -76,3 +76,18 @@ def test_drives_the_subset_search(rng):
     assert calls and calls[-1][0] == calls[-1][1]
     assert bar.n_done == bar.n_total == calls[-1][1]
     np.testing.assert_allclose(result.coef[[1, 4]], [2.0, -1.0], rtol=1e-10)
+
+
+def test_branch_and_bound_shows_nodes_and_gap(rng):
+    """Unknown total: the bar counts nodes and shows the gap after them."""
+    from lsindy_cas.identify.bnb import branch_and_bound
+    out, clock = io.StringIO(), Clock()
+    clock.now = 10.0                     # past the delay from the first report on
+    A, b = rng.normal(size=(40, 14)), rng.normal(size=40)
+    with ProgressBar("branch and bound", stream=out, force=True, clock=clock, delay=0.5,
+                     interval=0, unit="nodes") as bar:
+        bar.start = 0.0
+        res = branch_and_bound(A, b, 3, progress=bar)
+    text = out.getvalue()
+    assert f"{float(res.nodes):.1f}nodes" in text and "gap 0.00e+00" in text
+    assert bar.n_done == res.nodes and bar.text.startswith("gap")

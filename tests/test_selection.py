@@ -112,6 +112,14 @@ def test_beam_finds_what_the_exhaustive_search_finds(rng, monkeypatch):
     assert beam.support == full.support and any(st.beam for st in beam.steps)
 
 
+def test_fixed_k_beyond_the_exhaustive_budget_uses_branch_and_bound(rng, monkeypatch):
+    bal = _synthetic(rng)
+    full = select(bal, [], n_terms=3)
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 20)
+    bnb = select(bal, [], n_terms=3)
+    assert bnb.support == full.support and bnb.search.method == "bnb" and bnb.search.proven
+
+
 def test_select_bad_arguments(rng):
     bal = _synthetic(rng)
     with pytest.raises(ValueError, match="excluded"):

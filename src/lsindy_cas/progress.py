@@ -1,6 +1,7 @@
 """Progress of long work on stderr, drawn by tqdm (ETA, rates, notebooks), silent when quick.
 
-The subset search reports ``progress(n_done, n_total)`` after each batch of supports.  A
+The subset search reports ``progress(n_done, n_total)`` after each batch of supports; the branch
+and bound reports ``(nodes, 0)`` (total unknown) and its gap and elapsed time through ``status``.  A
 :class:`ProgressBar` is such a callable: nothing happens for work that finishes within ``delay``
 seconds — tqdm is not even imported (it costs ~0.08 s, 4 % of a quick ``lsindy identify``) — and
 otherwise a tqdm bar is drawn::
@@ -57,6 +58,7 @@ class ProgressBar:
         self.start = self.clock()
         self.n_done = 0
         self.n_total = 0
+        self.text = ""
         self._bar = None
 
     def __call__(self, n_done: int, n_total: int) -> None:
@@ -68,12 +70,18 @@ class ProgressBar:
                 return
             from tqdm import tqdm
 
-            self._bar = tqdm(total=self.n_total, desc=self.label, file=self.stream,
+            self._bar = tqdm(total=self.n_total or None, desc=self.label, file=self.stream,
                              mininterval=self.interval, unit=self.unit, unit_scale=True,
                              leave=True, dynamic_ncols=True)
-        if self._bar.total != self.n_total:
+        if self.n_total and self._bar.total != self.n_total:
             self._bar.total = self.n_total
         self._bar.update(self.n_done - self._bar.n)
+
+    def status(self, text: str) -> None:
+        """Show ``text`` after the counts (e.g. a branch and bound's gap and elapsed time)."""
+        self.text = text
+        if self._bar is not None:
+            self._bar.set_postfix_str(text, refresh=False)
 
     @property
     def shown(self) -> bool:

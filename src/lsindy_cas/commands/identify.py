@@ -25,7 +25,6 @@ exit codes:
 
 
 def run(args) -> int:
-
     from .._io import check_writable
     from ..data.trajectory import load_trajectories
     from ..identify.estimator import LagrangianSINDy
@@ -35,6 +34,8 @@ def run(args) -> int:
                         ("--window", args.window)):
         if value is not None and value < 1:
             raise ValueError(f"{flag} must be a positive integer, got {value}")
+    if args.time_limit is not None and not 0 < args.time_limit < float("inf"):   # and nan
+        raise ValueError(f"--time-limit must be positive (seconds), got {args.time_limit}")
     if args.json:
         check_writable(args.json, "--json")
     if args.workers is not None and args.workers < 1:
@@ -66,13 +67,18 @@ def run(args) -> int:
             raise ValueError(f"--scheduler: {exc}") from None
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=split(args.prior), form=args.form,
                             window=args.window, smoothing=args.smoothing,
-                            max_terms=args.max_terms, hold=args.hold, dissipation=dissipation)
+                            max_terms=args.max_terms, hold=args.hold, dissipation=dissipation,
+                            time_limit=args.time_limit)
     from ..progress import ProgressBar
     with ProgressBar("searching supports", unit="supports") as bar:
         model.fit(trajs, scale, passive=True if args.passive else None, progress=bar,
                   client=client)
     if client is not None:
         client.close()
+    res = model.search_
+    if not res.proven:              # time limit or Ctrl-C in the branch and bound
+        print(f"search not proven: best admissible support found in {res.seconds:.1f} s "
+              f"({res.nodes:,} nodes), optimality gap {res.gap:.3g}", file=sys.stderr)
     print(model)
     if model.energy_scale_ == "relative":
         print("(no --scale record: add --scale TRAJ..., a short actuated run, for an absolute energy)")
@@ -129,6 +135,10 @@ def add_to(sub) -> None:
                        "optional extra dask[distributed]; the same answer as without)")
     ident.add_argument("--workers", type=int, default=None, metavar="N",
                        help="with --scheduler local: number of worker processes (default: cores)")
+    ident.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                       help="branch and bound (libraries too large to score every support): stop "
+                       "each search after SECONDS with the best admissible support found, marked "
+                       "not proven with its optimality gap (Ctrl-C does the same)")
     ident.add_argument("--json", metavar="OUT.json",
                        help="write the model file here (its folder must exist)")
     ident.set_defaults(func=run)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from .._validate import check_choice, check_int
+from .._validate import check_choice, check_int, check_real
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from .diagnostics import FitRecord, constant_force_trap, diagnose
@@ -106,7 +106,7 @@ class LagrangianSINDy:
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
                  window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
-                 hold: str = "auto", dissipation=None):
+                 hold: str = "auto", dissipation=None, time_limit: float | None = None):
         self.library = library
         self.n_terms = n_terms
         self.prior = prior
@@ -114,8 +114,7 @@ class LagrangianSINDy:
         self.window = window
         self.smoothing = smoothing
         self.max_terms = max_terms
-        self.hold = hold
-        self.dissipation = dissipation
+        self.hold, self.dissipation, self.time_limit = hold, dissipation, time_limit
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
@@ -139,6 +138,7 @@ class LagrangianSINDy:
         self._diss_lib = dissipation_library(self.library.coords, self.dissipation)
         if self._diss_lib is not None and self.window is not None:
             raise ValueError("dissipation needs the all-windows integral form: leave window unset")
+        check_real("time_limit", self.time_limit, positive=True, allow_none=True)
         return sorted(set(forced))
 
     def _form(self, trajectories) -> str:
@@ -294,7 +294,7 @@ class LagrangianSINDy:
                  if state_var is not None and bal.centred else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
                      scale_system=scale_system, max_terms=self.max_terms, noise=noise,
-                     progress=progress)
+                     progress=progress, time_limit=self.time_limit)
         coef = sel.coef
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
         if state_var is not None and bal.centred:

@@ -54,6 +54,12 @@ def model_to_dict(model) -> dict:
         out["rayleigh"] = str(model.rayleigh_)
         out["rayleigh_terms"] = model.terms("rayleigh")
         out["dissipation_library"] = model._diss_lib.to_dict()
+    res = getattr(model, "search_", None)
+    if res is not None:            # how the support was found, and whether it is proven best
+        out["search"] = {"method": res.method, "proven": bool(res.proven), "gap": float(res.gap),
+                         "nodes": int(res.nodes), "supports_scored": int(res.n_supports)}
+    elif getattr(model, "_loaded_search", None) is not None:
+        out["search"] = model._loaded_search
     diag = getattr(model, "diagnostics_", None)
     diag = diag.to_dict() if diag is not None else getattr(model, "_loaded_diagnostics", None)
     if diag is not None:           # the report of the fit travels with the model file
@@ -87,6 +93,7 @@ def load_model(cls, path):
     model = cls(lib, n_terms=max(1, len(terms)), prior=d.get("prior", ()))
     model.actuated_ = list(d.get("actuated", []))
     model._loaded_diagnostics = d.get("diagnostics")
+    model._loaded_search = d.get("search")
     model.hold_ = d.get("hold")
     model.velocities_ = d.get("velocities", "measured")     # files before positions-only: measured
     status = d.get("status")

@@ -115,6 +115,19 @@ class SearchResult:
         Every scored support and its score.
     n_reducible : int
         Better-scoring supports skipped because a coefficient vanished (smaller model in disguise).
+    method : {"exhaustive", "bnb"}
+        How the supports were searched (:mod:`lsindy_cas.identify.bnb` for branch and bound).
+    proven : bool
+        Whether the support is certified best admissible (always for the exhaustive search; for
+        branch and bound when the tree was exhausted, not after a time limit or Ctrl-C).
+    gap : float
+        Winner's score minus the smallest lower bound left unexplored (0 when exhaustive).
+    nodes : int
+        Branch and bound: nodes expanded.
+    seconds : float
+        Branch and bound: time of the search.
+    interrupted : bool
+        Branch and bound: stopped by Ctrl-C.
     """
 
     support: tuple
@@ -127,6 +140,12 @@ class SearchResult:
     scores: np.ndarray | None = field(default=None, repr=False)
     supports: np.ndarray | None = field(default=None, repr=False)
     n_reducible: int = 0
+    method: str = "exhaustive"
+    proven: bool = True
+    gap: float = 0.0
+    nodes: int = 0
+    seconds: float = 0.0
+    interrupted: bool = False
 
 
 def _gather(G: np.ndarray, S: np.ndarray) -> np.ndarray:

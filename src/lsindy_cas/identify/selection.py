@@ -1,8 +1,8 @@
 """Scale-free model selection: the support *and* the number of terms k, with physical admissibility.
 
 For each k the best admissible support comes from :func:`lsindy_cas.identify.search.best_subset` (all
-k-supports scored by a scale-free criterion) or, for large libraries, from a beam of one-term
-extensions; both visit their candidates through :func:`lsindy_cas.identify.search.visit`, so a
+k-supports scored by a scale-free criterion) or, for large libraries, from the branch and bound
+of :mod:`lsindy_cas.identify.bnb` (exact, with a certificate) or a beam; all visit their candidates through :func:`lsindy_cas.identify.search.visit`, so a
 support gets the same coefficients on either path.  Admissible means passing every rule of
 :mod:`lsindy_cas.identify.admissibility` (an energy, no undetermined term, every coefficient
 significantly non-zero in a block jackknife).  k itself is chosen on held-out data: whole
@@ -31,8 +31,13 @@ on the paper's 1 s runs at σ = 1e-3: cart-pendulum — the 4-term energy has χ
 6-term imitations smaller held-out errors; double pendulum — the energy χ = 1.0–1.7, the 7-term
 imitation held-out errors 10× smaller but χ = 2.1–3.3.
 
-Where scoring every support is too much (more than ``EXHAUSTIVE`` supports) the candidates are the
-one-term extensions of the best ``BEAM`` supports of the level below.
+Where scoring every support is too much (more than ``EXHAUSTIVE`` supports): when k is given,
+branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given), and so in
+the automatic scan of k when no smaller model is there to extend and a ``time_limit`` is given
+(without one that k is skipped, as before); otherwise the candidates are the one-term extensions
+of the best ``BEAM`` supports of the level below (fast, not exact: above the true k every
+near-perfect support is a smaller one in disguise, which an exact search of the best *admissible*
+support would have to rule out one by one).
 """
 from __future__ import annotations
 
@@ -44,6 +49,7 @@ import numpy as np
 
 from .balance import EnergyBalance
 from .fitting import null_vector
+from .bnb import branch_and_bound
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 
@@ -75,7 +81,7 @@ class Step:
     cv: float
     cv_folds: np.ndarray = field(repr=False)
     search: SearchResult | None = field(default=None, repr=False)
-    beam: bool = False
+    beam: bool = False          # found by the beam or branch and bound (not every support scored)
     chi: float = float("nan")
 
 
@@ -185,20 +191,27 @@ class _Columns:
         return out
 
 
-def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None):
-    """Best admissible k-support (exhaustive, or beam from ``prev``); SearchResult in full indices."""
+def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
+              time_limit=None, automatic=False):
+    """Best admissible k-support, SearchResult in full indices: exhaustive up to EXHAUSTIVE
+    supports; beyond, the beam from ``prev`` (automatic k) or else branch and bound."""
     p = bal.A.shape[1]
     A, D = bal.A[:, cols.keep], bal.D[:, cols.keep]
     f_loc = cols.local(forced)
     adm = None if admissible is None else (
         lambda S, coef: admissible(cols.full(S), cols.full_coef(coef, p)))
     n_free = len(cols.keep) - len(f_loc)
-    beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE
-    if beam and (prev is None or prev.search is None or prev.search.supports is None):
+    beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score every support
+    can_extend = prev is not None and prev.search is not None and prev.search.supports is not None
+    if beam and automatic and not can_extend and time_limit is None:
         raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms are too many to "
-                         "score without a smaller model to extend")
-    if beam:
+                         "score without a smaller model to extend (give a time limit to search "
+                         "them by branch and bound)")
+    if beam and automatic and can_extend:
         res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
+    elif beam:                                           # fixed k, or no smaller model to extend
+        res = branch_and_bound(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
+                               scale_system=scale_system, time_limit=time_limit, progress=progress)
     else:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress)
@@ -235,7 +248,7 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
 
 def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible: Callable | None = None,
            scale_system=None, exclude=(), max_terms: int | None = None, noise=None,
-           progress: Callable | None = None) -> Selection:
+           progress: Callable | None = None, time_limit: float | None = None) -> Selection:
     """Choose the support (and k when ``n_terms`` is None) of the energy.
 
     Parameters
@@ -257,6 +270,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     noise : NoiseModel, optional
         Expected noise of the rows (driven data): enables the discrepancy cap on k.
     progress : callable ``(n_done, n_total)``, optional
+    time_limit : float, optional
+        Seconds allowed to each branch-and-bound search (see :mod:`lsindy_cas.identify.bnb`).
 
     Returns
     -------
@@ -269,7 +284,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     cols = _Columns(p, exclude)
     folds = fold_ids(bal)
     if n_terms is not None:
-        res, _ = _search_k(bal, int(n_terms), forced, cols, admissible, scale_system, progress, None)
+        res, _ = _search_k(bal, int(n_terms), forced, cols, admissible, scale_system, progress, None,
+                           time_limit)
         cv, per = cv_error(bal, res.support, folds)
         step = Step(int(n_terms), res.support, res.coef, res.score, cv, per, res,
                     chi=_chi(bal, res, noise))
@@ -281,7 +297,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     steps, best, prev, reasons, fits = [], None, None, [], None
     for k in range(k_lo, k_hi + 1):
         try:
-            res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev)
+            res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev,
+                                  time_limit, automatic=True)
         except ValueError as exc:        # no admissible k-term model: try the next k
             reasons.append(f"k = {k}: {exc}")
             prev = None
@@ -294,6 +311,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
             fits = step                  # the discrepancy principle: enough terms for the noise
         if best is None or _better(step, best):
             best = step
+        if res.interrupted:              # Ctrl-C in the branch and bound: no further k
+            break
         if k - best.k >= 2 or (fits is not None and k > fits.k):
             break
     if best is None:

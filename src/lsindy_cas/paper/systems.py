@@ -20,7 +20,7 @@ from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
 from ..mechanics.rayleigh import COULOMB_EPS
 
 __all__ = ["MechanicalSystem", "spherical_pendulum", "double_pendulum", "cart_pendulum",
-           "mass_spring", "PAPER_SYSTEMS"]
+           "mass_spring", "elastic_pendulum", "PAPER_SYSTEMS"]
 
 G = 9.81
 
@@ -166,6 +166,19 @@ def cart_pendulum(mc=1.0, mp=0.1, L=1.0, g=G, names=("x", "theta")) -> Mechanica
                  f" + {mp * L}*{x}_dot*{th}_dot*cos({th})"),
         potential=f"-{mp * g * L}*cos({th})", actuated=x,
         x0=(0.0, np.pi / 4, 0.0, 0.0), params=dict(mc=mc, mp=mp, L=L, g=g))
+
+
+def elastic_pendulum(m=1.0, k=40.0, L0=1.0, g=G, names=("r", "theta")) -> MechanicalSystem:
+    """A point mass on a spring (not in the paper): r the spring length, θ from the downward
+    vertical; T = m(ṙ² + r²θ̇²)/2, V = −m g r cos θ + k (r − L0)²/2 (energy terms ṙ², r²θ̇², r cos θ,
+    r², r); actuation: a moment about the pivot, Q_θ = u (a constant force along the spring would
+    leave the coefficient of r undetermined: E and E − u·r change alike)."""
+    r, th = names
+    return MechanicalSystem(
+        "elastic pendulum", list(names),
+        kinetic=f"{m / 2}*({r}_dot**2 + {r}**2*{th}_dot**2)",
+        potential=f"-{m * g}*{r}*cos({th}) + {k / 2}*{r}**2 - {k * L0}*{r}", actuated=th,
+        x0=(1.2, np.pi / 3, 0.0, 0.0), params=dict(m=m, k=k, L0=L0, g=g))
 
 
 def mass_spring(m=2.0, k=5.0, name="s") -> MechanicalSystem:

@@ -1,0 +1,162 @@
+"""Branch and bound: every bound against brute force, the same answer as the exhaustive search,
+the certificate, the time limit and bad input."""
+import itertools
+
+import numpy as np
+import pytest
+
+from lsindy_cas.identify.bnb import _Node, _Search, branch_and_bound, screening_order
+from lsindy_cas.identify.search import best_subset
+
+
+def _problem(rng, m, p, passive):
+    A = rng.normal(size=(m, p)) * rng.uniform(0.1, 10, p)          # badly scaled columns
+    if passive:                                                     # a sparse near-null vector
+        A[:, 2] = A[:, 0] * 0.7 - A[:, 4] * 1.3 + 1e-3 * rng.normal(size=m)
+        return A, None, A
+    return A, rng.normal(size=m), None
+
+
+def _brute(search: _Search, S):
+    """Score of support S from scratch: least-squares relative residual, or λ_min of Ĝ_S."""
+    S = list(S)
+    if search.b is None:
+        return np.linalg.eigvalsh(search.G[np.ix_(S, S)])[0]
+    An = search.A[:, S] / np.linalg.norm(search.A[:, S], axis=0)
+    x = np.linalg.lstsq(An, search.b, rcond=None)[0]
+    return np.sum((An @ x - search.b) ** 2) / search.bb
+
+
+@pytest.mark.parametrize("passive", [False, True])
+@pytest.mark.parametrize("seed", range(4))
+def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed):
+    rng = np.random.default_rng(seed)
+    A, b, D = _problem(rng, 30, 9, passive)
+    k, forced = 4, [int(rng.integers(9))] if seed % 2 else []
+    s = _Search(A, b, k, forced, None, D, None, 0.0, 5)
+    order = s.order
+    # expand the root and one child, and check each child's bound against all of its leaves
+    nodes = s.children(_Node((), 0.0, 1.0))
+    nodes += s.children(nodes[0])
+    for ch in nodes:
+        left = s.r - len(ch.pos)
+        allowed = range(ch.pos[-1] + 1, len(order))
+        fixed = forced + [int(order[j]) for j in ch.pos]
+        best = min(_brute(s, fixed + [int(order[j]) for j in T])
+                   for T in itertools.combinations(allowed, left))
+        assert ch.bound <= best + 1e-12
+
+
+@pytest.mark.parametrize("passive", [False, True])
+def test_same_support_as_exhaustive_on_random_problems(passive):
+    rng = np.random.default_rng(7)
+    for _ in range(25):
+        m, p = int(rng.integers(10, 40)), int(rng.integers(5, 12))
+        k = int(rng.integers(2, min(p, 5) + 1))
+        A, b, D = _problem(rng, m, p, passive)
+        forced = sorted(rng.choice(p, int(rng.integers(0, 2)), replace=False).tolist())
+        ex = best_subset(A, b, k, forced, D=D)
+        bb = branch_and_bound(A, b, k, forced, D=D)
+        assert bb.support == ex.support
+        assert bb.score == pytest.approx(ex.score, rel=1e-8, abs=1e-14)
+        np.testing.assert_allclose(bb.coef, ex.coef, rtol=1e-10, atol=1e-12)
+        assert bb.proven and bb.method == "bnb" and bb.gap <= 1e-12 and bb.nodes >= 1
+
+
+def test_admissibility_respected_best_admissible_wins(rng):
+    """Reject the exhaustive winner: both searches must agree on the best support that passes."""
+    A = rng.normal(size=(50, 10))
+    b = A[:, [1, 4, 7]] @ np.array([1.0, -2.0, 0.5]) + 0.01 * rng.normal(size=50)
+    banned = {(1, 4, 7)}
+
+    def admissible(S, coef):
+        return (S not in banned), "banned"
+
+    ex = best_subset(A, b, 3, admissible=admissible)
+    bb = branch_and_bound(A, b, 3, admissible=admissible)
+    assert bb.support == ex.support != (1, 4, 7)
+    assert any(c.support == (1, 4, 7) and c.reason == "banned" for c in bb.candidates)
+
+
+def test_exact_sparse_support_found_in_a_large_library(rng):
+    """p = 60, k = 5: C(60, 5) = 5.5 M supports; the clean exact support is proven best (with the
+    stepwise screening, which finds it first on random columns; the library order also proves it)."""
+    A = rng.normal(size=(120, 60))
+    truth = (3, 17, 29, 41, 58)
+    b = A[:, list(truth)] @ np.array([1.0, -2.0, 0.5, 3.0, -1.5])
+    res = branch_and_bound(A, b, 5, screen=True)
+    assert res.support == truth and res.proven and res.gap <= 1e-12
+    assert res.nodes < 1000
+    np.testing.assert_allclose(res.coef[list(truth)], [1.0, -2.0, 0.5, 3.0, -1.5], rtol=1e-10)
+
+
+def test_screening_puts_the_stepwise_terms_first(rng):
+    A = rng.normal(size=(80, 12))
+    b = 3 * A[:, 5] + A[:, 9]
+    from lsindy_cas.identify.fitting import normal_equations
+    G, c = normal_equations(A, b)
+    order = screening_order(G, c, [], range(12), 2)
+    assert set(order[:2].tolist()) == {5, 9}
+    assert sorted(order.tolist()) == list(range(12))
+
+
+def test_time_limit_returns_best_so_far_not_proven(rng, monkeypatch):
+    """A clock that jumps past the limit after 12 nodes: the result is marked not proven."""
+    import lsindy_cas.identify.bnb as bnb
+    calls = {"n": 0}
+
+    def clock():
+        calls["n"] += 1
+        return 0.0 if calls["n"] < 14 else 100.0
+
+    monkeypatch.setattr(bnb.time, "monotonic", clock)
+    A = rng.normal(size=(40, 14))
+    b = rng.normal(size=40)
+    res = branch_and_bound(A, b, 3, time_limit=5.0)
+    assert not res.proven and not res.interrupted
+    assert res.gap >= 0 and res.nodes >= 1
+    ex = best_subset(A, b, 3)
+    assert res.score >= ex.score - 1e-12       # never better than the optimum
+
+
+def test_keyboard_interrupt_returns_best_so_far(rng, monkeypatch):
+    import lsindy_cas.identify.bnb as bnb
+    calls = {"n": 0}
+    original = bnb._Search.children
+
+    def children(self, node):
+        calls["n"] += 1
+        if calls["n"] > 12:
+            raise KeyboardInterrupt
+        return original(self, node)
+
+    monkeypatch.setattr(bnb._Search, "children", children)
+    A = rng.normal(size=(40, 14))
+    b = rng.normal(size=40)
+    res = branch_and_bound(A, b, 3)
+    assert res.interrupted and not res.proven
+    assert res.gap >= 0
+
+
+@pytest.mark.parametrize("kwargs, exc, match", [
+    (dict(k=20), ValueError, "library size 8"),
+    (dict(k=0), ValueError, "library size"),
+    (dict(k=3, time_limit=0), ValueError, "time_limit must be positive"),
+    (dict(k=3, time_limit=-1.0), ValueError, "time_limit must be positive"),
+    (dict(k=3, time_limit="10"), TypeError, "time_limit must be a number"),
+    (dict(k=3, time_limit=float("nan")), ValueError, "time_limit must be finite"),
+    (dict(k=2, forced=(0, 1, 2)), ValueError, "3 prior terms do not fit"),
+])
+def test_bad_input(rng, kwargs, exc, match):
+    A, b = rng.normal(size=(20, 8)), rng.normal(size=20)
+    k = kwargs.pop("k")
+    with pytest.raises(exc, match=match):
+        branch_and_bound(A, b, k, **kwargs)
+
+
+def test_estimator_rejects_bad_time_limit():
+    from lsindy_cas import Library, LagrangianSINDy
+    lib = Library.polynomial(["x"], "x,x_dot", 2)
+    for bad, exc in ((0, ValueError), (-3, ValueError), ("1", TypeError), (True, TypeError)):
+        with pytest.raises(exc, match="time_limit"):
+            LagrangianSINDy(lib, time_limit=bad)._validate()
