@@ -62,3 +62,11 @@ def test_bad_input(runs):
         refine(["theta"], TERMS, TRUE, runs, DISS, fixed="theta_dot**2", interval=0.0)
     with pytest.raises(TypeError, match="trajectories"):
         refine(["theta"], TERMS, TRUE, [], DISS, fixed="theta_dot**2")
+
+
+def test_fixed_start_keeps_the_first_sample(runs):
+    start = runs[0].X[0] + [0.0, 0.01]          # a wrong first rate, kept as given
+    run = Trajectory(runs[0].t, np.r_[[start[:1]], runs[0].q[1:]], np.r_[[start[1:]], runs[0].qd[1:]],
+                     ["theta"])
+    res = refine(["theta"], TERMS, TRUE, [run], DISS, fixed="theta_dot**2", free_start=False)
+    np.testing.assert_array_equal(res.x0[0], start)

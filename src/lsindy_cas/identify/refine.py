@@ -145,7 +145,8 @@ def _check_admissible(dyn: ParametricDynamics, p, trajectories):
 
 def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fixed=(),
            interval: float = 0.25, steps: int = 2, rate_weight: float = 0.1, lower=None,
-           upper=None, eps: float = DEFAULT_EPS, max_iter: int = 200, verbose: bool = False):
+           upper=None, eps: float = DEFAULT_EPS, free_start: bool = True, max_iter: int = 200,
+           verbose: bool = False):
     """Refine L's and R's coefficients by minimising the simulation error over training runs.
 
     Parameters
@@ -171,6 +172,9 @@ def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fix
         Extra bounds; the admissibility bounds (module text) are always added.
     eps : float
         Smoothing speed of Coulomb terms (``ParametricDynamics``).
+    free_start : bool
+        Fit each run's initial state (default); False keeps it at the first measured sample, so
+        the fit minimises the error of predicting each run from its first sample.
     max_iter : int
         IPOPT iteration limit.
 
@@ -233,8 +237,11 @@ def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fix
         S = ca.MX.sym(f"s{r}", 2 * n, len(nodes))
         w.append(ca.vec(S))
         w0.append(tr.X[nodes].T.ravel(order="F"))
-        wlb.append(np.full(S.numel(), -np.inf))
-        wub.append(np.full(S.numel(), np.inf))
+        slb, sub = np.full(S.shape, -np.inf), np.full(S.shape, np.inf)
+        if not free_start:
+            slb[:, 0] = sub[:, 0] = tr.X[0]
+        wlb.append(slb.ravel(order="F"))
+        wub.append(sub.ravel(order="F"))
         X, U = tr.X, tr.Q
         cost += ca.sumsqr(weight * (S[:, 0] - X[0][:, None]))
         for k in range(len(nodes) - 1):
