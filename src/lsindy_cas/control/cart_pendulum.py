@@ -30,6 +30,7 @@ import numpy as np
 from .._validate import check_real
 from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
+from .sequence_balancer import SequenceBalancer
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
 
@@ -111,7 +112,11 @@ class SwingUpMPC(DiscreteInputMPC):
         upright) instead of from the relaxed plan; a dict passes options to it (``horizon``,
         ``max_pushes``, ``rate_band``, ``angle_band``, ``region``, ``max_lean``,
         ``cart_frequency``, ``cart_damping``, ``lean_weight``, ``push_weight``,
-        ``mode_weight``, ``track_weight``, ``brake_fraction``).  Waiting is the balancer's
+        ``mode_weight``, ``track_weight``, ``brake_fraction``); ``{"method": "sequence"}``
+        uses :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer` instead (branch
+        and bound over all level sequences, for plants whose push is nearly as large as the
+        band; its own options ``max_frontier``, ``violation_weight``, ``state_weights``, ...
+        are accepted then).  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
         without 0 in the set is an error).
     **options
@@ -203,13 +208,23 @@ class SwingUpMPC(DiscreteInputMPC):
         if balance is not False:
             if balance is True:
                 balance = {}
+            balance = dict(balance)
+            method = balance.pop("method", "pulse")
+            kinds = {"pulse": PulseBalancer, "sequence": SequenceBalancer}
+            if method not in kinds:
+                raise ValueError(f"balance['method'] must be one of {sorted(kinds)}, got "
+                                 f"{method!r}.")
+            kind = kinds[method]
             own = {"track_margin", "correction"}  # set by the controller itself
-            allowed = set(PulseBalancer.__init__.__kwdefaults__) - own
+            allowed = (set(PulseBalancer.__init__.__kwdefaults__)
+                       | set(kind.__init__.__kwdefaults__)) - own
+            if kind is SequenceBalancer:
+                allowed.discard("max_pushes")
             unknown = set(balance) - allowed
             if unknown:
                 raise ValueError(f"balance has unknown keys {sorted(unknown)}; known: "
-                                 f"{sorted(allowed)}.")
-            self.balancer = PulseBalancer(
+                                 f"{sorted(allowed | {'method'})}.")
+            self.balancer = kind(
                 self.step_function, ode, self.levels, cart_index=ic, pole_index=ip,
                 upright=self.upright, track_limit=self.track_limit, dt=self.dt,
                 track_margin=track_margin, correction=self.correction, **balance)
