@@ -74,13 +74,18 @@ def test_corner_plant_is_held_upright_with_three_forces(corner):
     assert np.any(np.diff(pushes) == 1)  # consecutive pushes: chattering was needed
 
 
-def test_bad_options():
-    system = systems.cart_pendulum()
+def test_bad_options(corner):
+    system, ctrl = corner
+    # checked before the NLP is built
     with pytest.raises(ValueError, match="method"):
         SwingUpMPC(system, balance={"method": "milp"})
     with pytest.raises(ValueError, match="unknown keys"):
         SwingUpMPC(system, balance={"method": "sequence", "max_pushes": 3})
+    args = (ctrl.step_function, system.ode(), ctrl.levels)
+    kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
     with pytest.raises(ValueError, match="max_frontier"):
-        SwingUpMPC(system, balance={"method": "sequence", "max_frontier": 0})
+        SequenceBalancer(*args, max_frontier=0, **kw)
     with pytest.raises(ValueError, match="rate_band"):
-        SwingUpMPC(system, balance={"method": "sequence", "rate_band": -1.0})
+        SequenceBalancer(*args, rate_band=-1.0, **kw)
+    with pytest.raises(ValueError, match="0 in the force set"):
+        SequenceBalancer(ctrl.step_function, system.ode(), np.array([-10.0, 10.0]), **kw)
