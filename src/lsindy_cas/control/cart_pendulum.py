@@ -30,6 +30,7 @@ import numpy as np
 from .._validate import check_real
 from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
+from .sequence_balancer import SequenceBalancer
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
 
@@ -75,6 +76,31 @@ def find_upright(ode, cart_index, pole_index, n_grid=720):
     return float(wrap_angle(angle))
 
 
+def _balancer_kind(balance):
+    """The balancer class and its options chosen by ``balance`` (True, False or a dict)."""
+    if not isinstance(balance, (bool, dict)):
+        raise TypeError(f"balance must be True, False or a dict of options, got "
+                        f"{type(balance).__name__}.")
+    if balance is False:
+        return None, {}
+    options = {} if balance is True else dict(balance)
+    method = options.pop("method", "pulse")
+    kinds = {"pulse": PulseBalancer, "sequence": SequenceBalancer}
+    if method not in kinds:
+        raise ValueError(f"balance['method'] must be one of {sorted(kinds)}, got {method!r}.")
+    kind = kinds[method]
+    own = {"track_margin", "correction"}  # set by the controller itself
+    allowed = (set(PulseBalancer.__init__.__kwdefaults__)
+               | set(kind.__init__.__kwdefaults__)) - own
+    if kind is SequenceBalancer:
+        allowed.discard("max_pushes")
+    unknown = set(options) - allowed
+    if unknown:
+        raise ValueError(f"balance has unknown keys {sorted(unknown)}; known: "
+                         f"{sorted(allowed | {'method'})}.")
+    return kind, options
+
+
 class SwingUpMPC(DiscreteInputMPC):
     """Swing-up MPC for a cart-pendulum model, the force restricted to ``force_set``.
 
@@ -111,7 +137,11 @@ class SwingUpMPC(DiscreteInputMPC):
         upright) instead of from the relaxed plan; a dict passes options to it (``horizon``,
         ``max_pushes``, ``rate_band``, ``angle_band``, ``region``, ``max_lean``,
         ``cart_frequency``, ``cart_damping``, ``lean_weight``, ``push_weight``,
-        ``mode_weight``, ``track_weight``, ``brake_fraction``).  Waiting is the balancer's
+        ``mode_weight``, ``track_weight``, ``brake_fraction``); ``{"method": "sequence"}``
+        uses :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer` instead (branch
+        and bound over all level sequences, for plants whose push is nearly as large as the
+        band; its own options ``max_frontier``, ``violation_weight``, ``state_weights``, ...
+        are accepted then).  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
         without 0 in the set is an error).
     **options
@@ -175,6 +205,7 @@ class SwingUpMPC(DiscreteInputMPC):
             raise ValueError(f"weights has unknown keys {sorted(unknown)}; known: "
                              f"{sorted(self.default_weights)}.")
         w = dict(self.default_weights, **(weights or {}))
+        kind, balance_options = _balancer_kind(balance)  # checked before the NLP is built
         x = ca.SX.sym("x", 4)
         # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
         half = (x[ip] - self.upright) / 2
@@ -195,24 +226,13 @@ class SwingUpMPC(DiscreteInputMPC):
                          input_weight=w["input"], **options)
         self.cart_index, self.pole_index = ic, ip
         self.balancer = None
-        if not isinstance(balance, (bool, dict)):
-            raise TypeError(f"balance must be True, False or a dict of options, got "
-                            f"{type(balance).__name__}.")
         if balance is True and 0.0 not in self.levels:
-            balance = False  # nothing to wait with: the relaxed plan decides everywhere
-        if balance is not False:
-            if balance is True:
-                balance = {}
-            own = {"track_margin", "correction"}  # set by the controller itself
-            allowed = set(PulseBalancer.__init__.__kwdefaults__) - own
-            unknown = set(balance) - allowed
-            if unknown:
-                raise ValueError(f"balance has unknown keys {sorted(unknown)}; known: "
-                                 f"{sorted(allowed)}.")
-            self.balancer = PulseBalancer(
+            kind = None  # nothing to wait with: the relaxed plan decides everywhere
+        if kind is not None:
+            self.balancer = kind(
                 self.step_function, ode, self.levels, cart_index=ic, pole_index=ip,
                 upright=self.upright, track_limit=self.track_limit, dt=self.dt,
-                track_margin=track_margin, correction=self.correction, **balance)
+                track_margin=track_margin, correction=self.correction, **balance_options)
 
     def reset(self):
         """Forget the warm start, the rounding memory and the balancer's mode (see

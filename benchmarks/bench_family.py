@@ -1,0 +1,169 @@
+"""Swing-up across the cart-pendulum family (issue 16): identified vs exact model, two balancers.
+
+Plants: cart mass 0.5-2 kg, pole mass 0.05-0.5 kg, pole length 0.3-1.5 m, all with one push's
+kick ``F dt / (m_c L) <= 0.9 rad/s`` (10 N, 50 ms), the paper's plant first and the light-cart,
+short-pole corner (0.8 kg, 0.7 m: 0.89 rad/s) included.  Each plant is identified by the engine
+from its own simulated actuated run (:func:`lsindy_cas.paper.swingup.identify_cart_pendulum`
+with the plant's system); controllers are built from the *identified* model and, as the
+ceiling, from the plant's *exact* equations; near the upright they use the pulse balancer
+(``pulse``, before issue 16) or the branch-and-bound sequence balancer (``sequence``).
+Scenarios: ``nominal`` (plant = the system identified) and ``mismatch`` (cart mass, pole mass
+and pole length each off by +-10 %, signs drawn per episode).  Success as in ``lsindy swingup``
+(upright within 0.1 rad and 0.5 rad/s over the last 3 s of 10 s, |x| <= 2 m throughout).
+
+Writes ``family.json`` and ``family.png`` to ``--out`` and prints a markdown table.
+
+    python benchmarks/bench_family.py --out /tmp/family            # 12 plants x 20 starts (hours)
+    python benchmarks/bench_family.py --out /tmp/family --quick    # 3 plants x 3 starts
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lsindy_cas import systems
+from lsindy_cas.mpc import SwingUpMPC
+from lsindy_cas.paper.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
+
+DT, FORCE = 0.05, 10.0
+
+#: (cart mass kg, pole mass kg, pole length m); the paper's plant first, the corner second
+PLANTS = [(1.0, 0.1, 1.0), (0.8, 0.2, 0.7), (0.5, 0.05, 1.2), (0.5, 0.5, 1.5), (0.6, 0.2, 1.0),
+          (1.0, 0.5, 0.6), (1.5, 0.05, 0.4), (2.0, 0.3, 0.3), (2.0, 0.5, 1.5), (1.5, 0.3, 1.0),
+          (1.2, 0.1, 0.5), (0.7, 0.4, 0.8)]
+QUICK = [0, 1, 4]
+BALANCERS = {"pulse": True, "sequence": {"method": "sequence"}}
+
+
+def kick(mc, L):
+    """Pole-rate change (rad/s) of one push at rest upright, to first order: F dt / (m_c L)."""
+    return FORCE * DT / (mc * L)
+
+
+def run_cell(model, system, starts, scenario, balance, seed):
+    """Episodes of one controller on one plant and scenario; returns a JSON-ready summary."""
+    ctrl = SwingUpMPC(model, dt=DT, balance=balance)
+    rng = np.random.default_rng(seed)
+    p = system.params
+    rows, plan_ms = [], []
+    for x0 in starts:
+        f = 1.0 + 0.1 * rng.choice([-1.0, 1.0], size=3) if scenario == "mismatch" else np.ones(3)
+        true = systems.cart_pendulum(mc=p["mc"] * f[0], mp=p["mp"] * f[1], L=p["L"] * f[2])
+        b = ctrl.balancer
+        n0 = len(getattr(b, "plan_seconds", []))
+        ep = run_episode(ctrl, Plant(true, DT), x0)
+        plan_ms += [1e3 * s for s in getattr(b, "plan_seconds", [])[n0:]]
+        rows.append({"success": bool(ep.success), "time_to_upright": float(ep.time_to_upright),
+                     "track_used": float(ep.track_used), "factors": f.tolist(),
+                     "plant_kick": kick(true.params["mc"], true.params["L"]),
+                     "forces_in_set": bool(np.all(np.isin(ep.forces, (-FORCE, 0.0, FORCE))))})
+    st = ctrl.stats.summary()
+    t_up = [r["time_to_upright"] for r in rows]
+    return {"successes": sum(r["success"] for r in rows), "episodes": len(rows),
+            "median_time_to_upright": float(np.median(t_up)),
+            "max_track_used": max(r["track_used"] for r in rows),
+            "forces_in_set": all(r["forces_in_set"] for r in rows),
+            "step_ms_median": st["step_ms_median"], "step_ms_p99": st["step_ms_p99"],
+            "plan_ms_median": float(np.median(plan_ms)) if plan_ms else None,
+            "plan_ms_p99": float(np.percentile(plan_ms, 99)) if plan_ms else None,
+            "failed_starts": [i for i, r in enumerate(rows) if not r["success"]],
+            "episodes_detail": rows}
+
+
+def figure(report, path):
+    """Success per plant, one bar group per (model, balancer), nominal and mismatch panels."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plants = report["plants"]
+    keys = [k for k in plants[0]["cells"]]
+    fig, axes = plt.subplots(2, 1, figsize=(max(6, 1.1 * len(plants)), 6), sharex=True)
+    width = 0.8 / max(1, len(keys) // 2)
+    for ax, scen in zip(axes, ("nominal", "mismatch")):
+        ks = [k for k in keys if k.endswith(scen)]
+        for j, k in enumerate(ks):
+            rate = [100 * p["cells"][k]["successes"] / p["cells"][k]["episodes"] for p in plants]
+            ax.bar(np.arange(len(plants)) + j * width, rate, width,
+                   label=k.rsplit("/", 1)[0])
+        ax.axhline(95, color="k", lw=0.8, ls="--")
+        ax.set_ylabel(f"{scen} success (%)")
+        ax.set_ylim(0, 105)
+    axes[1].set_xticks(np.arange(len(plants)) + 0.4 - width / 2)
+    axes[1].set_xticklabels([f"{p['mc']}/{p['mp']}/{p['L']}\nkick {p['kick']:.2f}"
+                             for p in plants], fontsize=7)
+    axes[0].legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True, help="output folder (family.json, family.png)")
+    ap.add_argument("--quick", action="store_true", help="3 plants x 3 starts")
+    ap.add_argument("--starts", type=int, help="random starts per plant (default 20; quick 3)")
+    ap.add_argument("--plants", help="comma-separated plant indices into PLANTS")
+    ap.add_argument("--balancers", default="pulse,sequence", help="pulse, sequence or both")
+    ap.add_argument("--models", default="identified,exact", help="identified, exact or both")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    starts_n = args.starts or (3 if args.quick else 20)
+    if starts_n < 1:
+        ap.error("--starts must be >= 1")
+    idx = ([int(i) for i in args.plants.split(",")] if args.plants
+           else QUICK if args.quick else range(len(PLANTS)))
+    balancers = args.balancers.split(",")
+    models = args.models.split(",")
+    if not set(balancers) <= set(BALANCERS) or not set(models) <= {"identified", "exact"}:
+        ap.error("--balancers must be among pulse,sequence and --models among identified,exact")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    starts = random_starts(starts_n, args.seed)
+    report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE, "plants": []}
+    t_all = time.perf_counter()
+    print("| mc | mp | L | kick | cell | nominal | mismatch | median t_up (s) | max abs x (m) "
+          "| step p99 (ms) | plan p99 (ms) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for i in idx:
+        mc, mp, L = PLANTS[i]
+        system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
+        t0 = time.perf_counter()
+        identified, _ = identify_cart_pendulum(system)
+        row = {"mc": mc, "mp": mp, "L": L, "kick": kick(mc, L),
+               "identified_terms": {k: float(v) for k, v in identified.terms().items()},
+               "identify_seconds": time.perf_counter() - t0, "cells": {}}
+        for mname in models:
+            model = identified if mname == "identified" else system
+            for bname in balancers:
+                res = {}
+                for scen in ("nominal", "mismatch"):
+                    res[scen] = run_cell(model, system, starts, scen, BALANCERS[bname],
+                                         [args.seed, i, scen == "mismatch"])
+                    row["cells"][f"{mname}/{bname}/{scen}"] = res[scen]
+                n, m = res["nominal"], res["mismatch"]
+                fmt = (lambda v: "-" if v is None else f"{v:.1f}")
+                print(f"| {mc} | {mp} | {L} | {row['kick']:.2f} | {mname}/{bname} | "
+                      f"{n['successes']}/{n['episodes']} | {m['successes']}/{m['episodes']} | "
+                      f"{n['median_time_to_upright']:.2f} | "
+                      f"{max(n['max_track_used'], m['max_track_used']):.2f} | "
+                      f"{max(n['step_ms_p99'], m['step_ms_p99']):.1f} | "
+                      f"{fmt(n['plan_ms_p99'] and max(n['plan_ms_p99'], m['plan_ms_p99'] or 0))} |",
+                      flush=True)
+        row["seconds"] = time.perf_counter() - t0
+        report["plants"].append(row)
+        (out / "family.json").write_text(json.dumps(report, indent=1))  # partial results too
+    report["seconds"] = time.perf_counter() - t_all
+    (out / "family.json").write_text(json.dumps(report, indent=1))
+    figure(report, out / "family.png")
+    print(f"\n{len(report['plants'])} plants, {time.perf_counter() - t_all:.0f} s; "
+          f"wrote {out / 'family.json'} and {out / 'family.png'}")
+
+
+if __name__ == "__main__":
+    main()

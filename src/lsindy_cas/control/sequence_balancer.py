@@ -1,0 +1,247 @@
+"""Balancing at the upright with every level sequence: branch and bound over ``levels^N``.
+
+:class:`PulseBalancer` enumerates sequences with at most a few pushes, which cannot express the
+alternating pushes in close succession ("chattering") that a plant needs when one push changes
+the pole rate by nearly the width of the success band (``F dt / (m_c L)`` up to ~0.9 rad/s
+against ``|theta_dot| < 0.5``).  :class:`SequenceBalancer` plans over *all* sequences of the
+force levels over ``horizon`` intervals, on the same model linearised at the upright, with the
+same online gain/offset correction, reference lean and hand-over rule as the pulse balancer.
+
+Cost of a sequence (every stage cost is non-negative)::
+
+    sum_k  violation_weight * band_excess(z_k)^2 + lean_weight * dt * (phi_k - phi_ref)^2
+           + cart_weight * dt * x_k^2 + push_weight * [u_k != 0]   +   mode_weight * s_N^2
+
+with the band excess of the pole angle, pole rate and cart position as in :class:`PulseBalancer`
+(the cart's excess weighted ``track_weight`` times) and ``s`` the unstable mode.
+
+Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
+by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
+extended by every level, and a partial sequence whose accumulated cost already reaches the
+incumbent's is pruned (the remaining costs are non-negative, so it cannot win).  If more than
+``max_frontier`` partial sequences survive a depth, the ``max_frontier`` with the least
+accumulated cost plus the current unstable-mode term are kept (a beam); the plan is then not
+proven optimal and :attr:`proven` is False.  Otherwise the returned first level is that of an
+optimal sequence over all ``len(levels)^horizon``.
+
+The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
+rate change over one push of the largest force from rest at the upright: a band narrower than
+one kick would make every reversing push a violation.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .._validate import check_int, check_real
+from .balancer import PulseBalancer
+from .mpc import wrap_angle
+
+__all__ = ["SequenceBalancer"]
+
+
+class SequenceBalancer(PulseBalancer):
+    """Level of the cart force near the upright by branch and bound (module docstring).
+
+    Parameters
+    ----------
+    step, ode, levels, cart_index, pole_index, upright, track_limit, dt
+        As for :class:`~lsindy_cas.control.balancer.PulseBalancer`.
+    horizon : int
+        Planned intervals ``N``.
+    max_frontier : int
+        Most partial sequences kept per depth (beyond it the search is a beam, not proven).
+    rate_band : float, optional
+        Band of the predicted pole rate (rad/s); by default from the model's kick (module
+        docstring).
+    violation_weight : float
+        Weight of the squared band excesses against the other terms.
+    cart_weight : float
+        Extra weight of the cart position's square in the stage cost.
+    state_weights : (float, float, float, float)
+        Stage weights of cart position, pole angle, cart speed and pole rate (per second);
+        with ``input_weight`` (per N^2 s) they give the DARE value used as terminal cost.
+    terminal_weight : float
+        Factor on the DARE value at the horizon's end.
+    lean_weight : float
+        Weight of the lean-reference term (small by default: the DARE value returns the cart).
+    **options
+        ``angle_band``, ``region``, ``max_lean``, ``cart_frequency``, ``cart_damping``,
+        ``lean_weight``, ``push_weight``, ``mode_weight``, ``track_margin``, ``track_weight``,
+        ``brake_fraction``, ``correction``: as for :class:`PulseBalancer`.
+
+    Attributes
+    ----------
+    kick : float
+        The model's pole-rate change (rad/s) over one push of the largest force at the upright.
+    proven : bool
+        Whether the last plan was optimal over all sequences (no beam truncation).
+    nodes : int
+        Partial sequences evaluated by the last plan.
+    plan_seconds : list of float
+        Wall-clock time of every plan.
+    plan : ndarray of int or None
+        Level indices of the last best sequence.
+    """
+
+    def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
+                 horizon=16, max_frontier=500, rate_band=None, violation_weight=1e4,
+                 cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
+                 terminal_weight=1.0, lean_weight=1e-6, **options):
+        horizon = check_int("horizon", horizon, low=1)
+        self.max_frontier = check_int("max_frontier", max_frontier, low=1)
+        self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
+        self.cart_weight = check_real("cart_weight", cart_weight, nonnegative=True)
+        if rate_band is not None:
+            rate_band = check_real("rate_band", rate_band, positive=True)
+        if "max_pushes" in options:
+            raise ValueError("max_pushes is an option of the pulse balancer; the sequence "
+                             "balancer plans over all sequences.")
+        # the parent builds the linearisation, kappa, the unstable mode and the hand-over
+        # rule; its push enumeration is not used (one push keeps its tables small)
+        super().__init__(step, ode, levels, cart_index=cart_index, pole_index=pole_index,
+                         upright=upright, track_limit=track_limit, dt=dt, horizon=horizon,
+                         max_pushes=1, rate_band=0.42 if rate_band is None else rate_band,
+                         lean_weight=lean_weight, **options)
+        self.levels = np.asarray(levels, dtype=float)
+        self.zero = int(np.flatnonzero(self.levels == 0.0)[0])
+        self.kick = float(abs(self.B[2 + self.ip]) * np.max(np.abs(self.levels)))
+        if rate_band is None:
+            self.rate_band = float(np.clip(self.kick / 2 + 0.02, 0.42, 0.48))
+        self.horizon = horizon
+        self.max_pushes = None
+        self._band = np.array([self.angle_band, self.rate_band,
+                               self.track_limit - self.track_margin])
+        track_weight = check_real("track_weight", options.get("track_weight", 10.0),
+                                  positive=True)
+        self._band_w = np.array([1.0, 1.0, track_weight ** 2]) * self.violation_weight
+        self.plan_seconds = []
+        # cart speed per unit pole rate of one push: the cart speed "at zero pole rate",
+        # x_dot - ratio * theta_dot, changes only through the lean (not through the pushes)
+        self.ratio = float(self.B[2 + self.ic] / self.B[2 + self.ip])
+        self._lean_dt = self.lean_weight * self.dt
+        self._comps = [self.ip, 2 + self.ip, self.ic]
+        # quadratic stage cost and its infinite-horizon value (DARE on the linearisation) as the
+        # terminal cost: the cost of returning the cart beyond the horizon
+        from scipy.linalg import solve_discrete_are
+        w = np.asarray(state_weights, dtype=float)
+        Q = np.zeros((4, 4))
+        for i, idx in enumerate((self.ic, self.ip, 2 + self.ic, 2 + self.ip)):
+            Q[idx, idx] = w[i]
+        Q[self.ic, self.ic] += self.cart_weight
+        self.Q = Q * self.dt
+        self.P = terminal_weight * solve_discrete_are(self.A, self.B[:, None], self.Q,
+                                                      np.array([[input_weight * self.dt]]))
+
+    def reset(self):
+        """Forget the balancer's mode and its last plan (call between episodes)."""
+        super().reset()
+        self.plan = None
+        self.proven, self.nodes = True, 0
+
+    def _stage(self, z, phi_ref):
+        """Non-negative stage cost of predicted error states ``z`` (n, 4)."""
+        comp = z[:, self._comps]
+        over = np.abs(comp)
+        over -= self._band
+        np.maximum(over, 0.0, out=over)
+        lean = z[:, self.ip] - phi_ref
+        return ((over * over) @ self._band_w + ((z @ self.Q) * z).sum(axis=1)
+                + self._lean_dt * lean * lean)
+
+    def _terminal(self, z):
+        """Terminal cost of error states ``z`` (n, 4): unstable mode and DARE value."""
+        s = z @ self.mode
+        return self.mode_weight * s * s + ((z @ self.P) * z).sum(axis=1)
+
+    def reference_lean(self, e):
+        """Lean (rad) that returns the cart to the centre, from the error state ``e``.
+
+        As :meth:`PulseBalancer.reference_lean`, with the cart speed at zero pole rate
+        ``x_dot - ratio * theta_dot`` in place of ``x_dot``: it does not jump with every push.
+        """
+        v = e[2 + self.ic] - self.ratio * e[2 + self.ip]
+        phi = -(self.wn ** 2 * e[self.ic] + 2 * self.zeta * self.wn * v) / self.kappa
+        return float(np.clip(phi, -self.max_lean, self.max_lean))
+
+    def _push_b(self, b):
+        return self.levels[:, None] * b[None, :]
+
+    def _rollout_cost(self, e, seqs, b, bias, phi_ref):
+        """Costs of whole level-index sequences ``seqs`` (n, horizon) from error state ``e``."""
+        z = np.tile(e, (seqs.shape[0], 1))
+        cost = np.zeros(seqs.shape[0])
+        for k in range(self.horizon):
+            u = self.levels[seqs[:, k]]
+            z = z @ self.A.T + bias + u[:, None] * b
+            cost += self._stage(z, phi_ref) + self.push_weight * (u != 0)
+        return cost + self._terminal(z)
+
+    def search(self, e, gain=None, bias=None):
+        """Best level-index sequence from error state ``e`` (4,) and its cost.
+
+        ``gain`` and ``bias`` (4,) correct the predictions, ``x+ = A x + (1 + gain) B u + bias``.
+        Sets :attr:`proven` and :attr:`nodes`.
+        """
+        gain = np.zeros(4) if gain is None else np.asarray(gain, dtype=float)
+        bias = np.zeros(4) if bias is None else np.asarray(bias, dtype=float)
+        b = self.B * (1.0 + gain)
+        H, n_lev = self.horizon, self.levels.size
+        phi_ref = self.reference_lean(e)
+        # incumbent: the previous plan shifted by one interval, and waiting throughout
+        cands = [np.full(H, self.zero)]
+        if self.plan is not None:
+            cands.append(np.append(self.plan[1:], self.zero))
+        cands = np.array(cands)
+        inc_costs = self._rollout_cost(e, cands, b, bias, phi_ref)
+        best_seq, best = cands[int(np.argmin(inc_costs))], float(inc_costs.min())
+        states, costs = e[None, :], np.zeros(1)
+        parents, moves = [], []
+        push_cost = self.push_weight * (self.levels != 0)
+        proven, nodes = True, 0
+        for k in range(H):
+            nxt = states @ self.A.T + bias
+            child = (nxt[:, None, :] + self._push_b(b)[None]).reshape(-1, 4)   # (M * L, 4)
+            c = np.repeat(costs, n_lev) + np.tile(push_cost, costs.size) + self._stage(child, phi_ref)
+            if k == H - 1:
+                c += self._terminal(child)
+            nodes += c.size
+            keep = np.flatnonzero(c < best)
+            if keep.size == 0:
+                break
+            if k == H - 1:
+                j = keep[int(np.argmin(c[keep]))]
+                seq = [j % n_lev]
+                p = j // n_lev
+                for d in range(H - 2, -1, -1):
+                    seq.append(moves[d][p])
+                    p = parents[d][p]
+                best_seq, best = np.array(seq[::-1]), float(c[j])
+                break
+            if keep.size > self.max_frontier:
+                proven = False
+                score = c[keep] + self._terminal(child[keep])
+                keep = keep[np.argpartition(score, self.max_frontier)[:self.max_frontier]]
+            states, costs = child[keep], c[keep]
+            parents.append(keep // n_lev)
+            moves.append(keep % n_lev)
+        self.proven, self.nodes = proven, nodes
+        return best_seq, best
+
+    def __call__(self, x):
+        """Level index to apply at state ``x`` (4,), or None where the balancer does not act."""
+        e = np.asarray(x, dtype=float) - self.x_ref
+        e[self.ip] = wrap_angle(e[self.ip])
+        if not self.active(e):
+            self.plan = None
+            return None
+        t0 = time.perf_counter()
+        if self.correction is None:
+            gain = bias = None
+        else:
+            gain, bias = self.correction.gain, self.correction.bias
+        self.plan, _ = self.search(e, gain, bias)
+        self.plan_seconds.append(time.perf_counter() - t0)
+        return int(self.plan[0])

@@ -1,0 +1,91 @@
+"""The branch-and-bound sequence balancer near the upright (issue 16)."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from lsindy_cas import systems
+from lsindy_cas.control.sequence_balancer import SequenceBalancer
+from lsindy_cas.mpc import SwingUpMPC
+from lsindy_cas.paper.swingup import Plant
+
+FORCES = (-10.0, 0.0, 10.0)
+
+
+@pytest.fixture(scope="module")
+def corner():
+    """The light-cart, short-pole plant of issue 16: one push changes the pole rate by
+    F dt / (m_c L) = 10 * 0.05 / (0.8 * 0.7) = 0.89 rad/s, nearly the band's width of 1 rad/s."""
+    system = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
+    return system, SwingUpMPC(system, balance={"method": "sequence"})
+
+
+def test_plant_quantities_come_from_the_model(corner):
+    _, ctrl = corner
+    b = ctrl.balancer
+    assert isinstance(b, SequenceBalancer)
+    # the discrete kick of the linearised RK4 step: F dt / (m_c L) to within gravity's < 1 %
+    assert b.kick == pytest.approx(10.0 * 0.05 / (0.8 * 0.7), rel=0.01)
+    assert b.rate_band == pytest.approx(b.kick / 2 + 0.02)
+    # paper plant: kick 0.5, band at its lower clip
+    paper = SwingUpMPC(systems.cart_pendulum(), balance={"method": "sequence"}).balancer
+    assert paper.kick == pytest.approx(0.5, rel=0.01) and paper.rate_band == 0.42
+    # the cart speed per pole rate of a push is the pole length (m_c L / m_c)
+    assert b.ratio == pytest.approx(0.7, rel=0.02)
+
+
+def test_search_without_truncation_is_the_exhaustive_optimum(corner):
+    system, ctrl = corner
+    b = SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
+                         pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05, horizon=7,
+                         max_frontier=10**6)
+    every = np.array(list(itertools.product(range(3), repeat=7)))
+    for e in ([0.3, 0.02, 0.2, -0.4], [-1.0, -0.05, 0.5, 0.3], [0.0, 0.0, 0.0, 0.45]):
+        e = np.array(e)
+        seq, cost = b.search(e)
+        costs = b._rollout_cost(e, every, b.B, np.zeros(4), b.reference_lean(e))
+        assert b.proven
+        assert cost == pytest.approx(costs.min(), rel=1e-9)
+        assert np.array_equal(seq, every[np.argmin(costs)])
+
+
+def test_corner_plant_is_held_upright_with_three_forces(corner):
+    """From near the top at rest, the balancer alone holds the corner plant inside the success
+    band for 4 s with pushes in close succession (the pulse balancer's 3-push plans cannot)."""
+    system, ctrl = corner
+    b = ctrl.balancer
+    b.reset()
+    plant = Plant(system, 0.05)
+    x = np.array([0.0, np.pi + 0.03, 0.0, 0.0])
+    fine, forces = [], []
+    for _ in range(80):
+        level = b(x)
+        assert level is not None
+        forces.append(FORCES[level])
+        states = plant.step(x, forces[-1])
+        fine.append(states)
+        x = states[-1]
+    X = np.vstack(fine)[100:]  # the last 3 s, every 10 ms
+    assert np.max(np.abs(X[:, 1] - np.pi)) < 0.1
+    assert np.max(np.abs(X[:, 3])) < 0.5
+    assert np.max(np.abs(X[:, 0])) < 2.0
+    pushes = np.flatnonzero(forces)
+    assert np.any(np.diff(pushes) == 1)  # consecutive pushes: chattering was needed
+
+
+def test_bad_options(corner):
+    system, ctrl = corner
+    # checked before the NLP is built
+    with pytest.raises(ValueError, match="method"):
+        SwingUpMPC(system, balance={"method": "milp"})
+    with pytest.raises(ValueError, match="unknown keys"):
+        SwingUpMPC(system, balance={"method": "sequence", "max_pushes": 3})
+    args = (ctrl.step_function, system.ode(), ctrl.levels)
+    kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
+    with pytest.raises(ValueError, match="max_frontier"):
+        SequenceBalancer(*args, max_frontier=0, **kw)
+    with pytest.raises(ValueError, match="rate_band"):
+        SequenceBalancer(*args, rate_band=-1.0, **kw)
+    with pytest.raises(ValueError, match="0 in the force set"):
+        SequenceBalancer(ctrl.step_function, system.ode(), np.array([-10.0, 10.0]), **kw)
