@@ -53,15 +53,16 @@ def dissipation_library(coords, terms) -> Library | None:
         terms = [terms] if isinstance(terms, str) else list(terms)
         if not terms:
             return None
-        lib = Library(coords, [_named(t, i) for i, t in enumerate(terms)])
+        exprs = []
+        for i, t in enumerate(terms):
+            if not isinstance(t, str) and not hasattr(t, "free_symbols"):
+                raise TypeError(f"dissipation term #{i + 1} must be a string, got "
+                                f"{type(t).__name__}")
+            exprs.append(coords.parse(t, what=f"dissipation term #{i + 1}"))
+        check_velocity_only(coords, exprs)
+        return Library(coords, exprs)
     check_velocity_only(lib.coords, lib.exprs)
     return lib
-
-
-def _named(t, i):
-    if not isinstance(t, str) and not hasattr(t, "free_symbols"):
-        raise TypeError(f"dissipation term #{i + 1} must be a string, got {type(t).__name__}")
-    return t
 
 
 def power_columns(lib: Library, X) -> np.ndarray:

@@ -305,13 +305,13 @@ class LagrangianSINDy:
         work is that of ρ(ξ) = −pinv(D) A ξ of the passive balance, folded into A_s."""
         if scale_list is None:
             return None
-        scale = self._balance(self._prepare(scale_list)[0], passive=False, dissipation=False)
+        states = self._prepare(scale_list)[0]
+        scale = self._balance(states, passive=False, dissipation=False)
         if not np.any(scale.b):
             raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
         if bal.dissipation is None:
             return scale.A, scale.b
-        return fold_scale(bal, scale, dissipation_columns(self._active_dissipation(),
-                                                          self._prepare(scale_list)[0], scale))
+        return fold_scale(bal, scale, dissipation_columns(self._active_dissipation(), states, scale))
 
     def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
