@@ -175,6 +175,16 @@ def test_inseparable_dissipation_terms_refused():
         LagrangianSINDy(lib, dissipation=["s_dot**2", "s_dot**2*(1 + 1e-12)"]).fit(runs)
 
 
+def test_coulomb_under_constant_force_is_one_clear_error(cart_friction):
+    """The paper's 1 s run: constant u, the cart never turns back, so ∫|ẋ| dt = x − x₀ and the
+    Coulomb term's work is the input's work scaled — friction and force cannot be separated."""
+    setup = PAPER_SETUPS["cart"]
+    lib = Library.polynomial(cart_friction.coords, setup.features, setup.degree)
+    tr = cart_friction.simulate(t_end=1.0, u=1.0)
+    with pytest.raises(ValueError, match="cannot separate the dissipation terms"):
+        LagrangianSINDy(lib, prior=setup.prior, dissipation=["x_dot**2", "Abs(x_dot)"]).fit(tr)
+
+
 def test_eom_with_rayleigh_hand_derived():
     """Cart with viscous c and Coulomb μ: F_x = Q_x − c ẋ − μ sign(ẋ); ODE: tanh(ẋ/ε)."""
     el = EulerLagrange(["x"], "x_dot**2/2", rayleigh="0.3*x_dot**2/2 + 0.2*Abs(x_dot)")

@@ -36,6 +36,9 @@ SUBSTEPS = 8
 # normalised block is below this fraction of the largest (round-off level: the data cannot tell
 # the terms apart, e.g. v² and |v| on a run at constant speed).
 COLLINEAR_RTOL = 1e-7
+# The work counts as explained by the dissipation columns alone when what is left of it after the
+# projection is below this fraction (the applied force and friction then cannot be told apart).
+WORK_RTOL = 1e-6
 # A fitted R dissipates no negative power beyond round-off: min power ≥ −NEG_RTOL · max |power|.
 NEG_RTOL = 1e-9
 
@@ -53,15 +56,16 @@ def dissipation_library(coords, terms) -> Library | None:
         terms = [terms] if isinstance(terms, str) else list(terms)
         if not terms:
             return None
-        lib = Library(coords, [_named(t, i) for i, t in enumerate(terms)])
+        exprs = []
+        for i, t in enumerate(terms):
+            if not isinstance(t, str) and not hasattr(t, "free_symbols"):
+                raise TypeError(f"dissipation term #{i + 1} must be a string, got "
+                                f"{type(t).__name__}")
+            exprs.append(coords.parse(t, what=f"dissipation term #{i + 1}"))
+        check_velocity_only(coords, exprs)
+        return Library(coords, exprs)
     check_velocity_only(lib.coords, lib.exprs)
     return lib
-
-
-def _named(t, i):
-    if not isinstance(t, str) and not hasattr(t, "free_symbols"):
-        raise TypeError(f"dissipation term #{i + 1} must be a string, got {type(t).__name__}")
-    return t
 
 
 def power_columns(lib: Library, X) -> np.ndarray:
@@ -118,6 +122,11 @@ def project(bal, Dd: np.ndarray, names):
                          "(too short or too uniform data); drop a term or add varied runs")
     A = bal.A - U @ (U.T @ bal.A)
     b = None if bal.b is None else bal.b - U @ (U.T @ bal.b)
+    if b is not None and np.linalg.norm(b) <= WORK_RTOL * np.linalg.norm(bal.b):
+        raise ValueError("the data cannot separate the dissipation terms "
+                         f"{', '.join(names)} from the applied work: friction explains all of it "
+                         "(e.g. Coulomb |v| under a constant force while v keeps its sign); vary "
+                         "the input or add runs")
     return replace(bal, A=A, b=b, dissipation=Dd, raw=(bal.A, bal.b))
 
 

@@ -347,8 +347,7 @@ class LagrangianSINDy:
             raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
         if bal.dissipation is None:
             return scale.A, scale.b
-        return fold_scale(bal, scale, dissipation_columns(self._active_dissipation(),
-                                                          self._prepare(scale_list)[0], scale))
+        return fold_scale(bal, scale, dissipation_columns(self._active_dissipation(), states, scale))
 
     def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
