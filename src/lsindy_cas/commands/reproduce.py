@@ -10,7 +10,8 @@ REPRODUCE_EXAMPLE = """example:
   lsindy reproduce --out results      # ~1 min: results/table1.md, fig3_complexity.png,
                                       # fig4_extrapolation.png, baselines.md (+ JSON)
 Exit status 0 when every Table I model has the exact support and the figures show the paper's
-claims (ours sparsest; our extrapolation error below SINDy's)."""
+claims (ours sparsest; our extrapolation error below SINDy's).  Without the optional pysindy the
+figures are drawn without the SINDy baseline (the output says so)."""
 
 
 def run(args) -> int:
