@@ -24,18 +24,20 @@ def fig3(results, path) -> Path:
     plt = _pyplot()
     methods = [("library", "library (candidates)", "#bbbbbb"), ("sindy", "SINDy (Lasso)", "#4c72b0"),
                ("kronic", "KRONIC", "#55a868"), ("ours", "Lagrangian-SINDy (ours)", "#c44e52")]
+    if all(r.sindy is None for r in results):        # SINDy skipped (pysindy missing)
+        methods = [m for m in methods if m[0] != "sindy"]
     fig, ax = plt.subplots(figsize=(8.5, 4.8))
     x = np.arange(len(results))
-    w = 0.2
+    w = 0.8 / len(methods)
     for i, (key, label, color) in enumerate(methods):
         vals = [getattr(r, key) for r in results]
-        bars = ax.bar(x + (i - 1.5) * w, vals, w, label=label, color=color, edgecolor="black",
+        bars = ax.bar(x + (i - (len(methods) - 1) / 2) * w, vals, w, label=label, color=color, edgecolor="black",
                       linewidth=0.6)
         for b, v in zip(bars, vals):
             ax.annotate(str(v), (b.get_x() + b.get_width() / 2, v), ha="center", va="bottom",
                         fontsize=9, xytext=(0, 2), textcoords="offset points")
     ax.set_yscale("log")
-    ax.set_ylim(1, max(max(r.library, r.sindy, r.kronic) for r in results) * 3)
+    ax.set_ylim(1, max(max(r.library, r.sindy or 0, r.kronic) for r in results) * 3)
     ax.set_xticks(x, [TITLES.get(r.system, r.system) for r in results], fontsize=11)
     ax.set_ylabel("number of non-zero terms (log scale)", fontsize=11)
     ax.set_title("Model complexity (paper Fig. 3) — lower is sparser", fontsize=12)
@@ -65,12 +67,13 @@ def fig4(results, path, t_train: float = T_TRAIN) -> Path:
               "ours": dict(color="#c44e52", lw=1.5, ls="--", label="Lagrangian-SINDy (ours)"),
               "sindy": dict(color="#4c72b0", lw=1.3, ls=":", label="SINDy (Lasso)")}
     k_train = int(np.argmin(np.abs(results[0].t - t_train)))
+    who_all = ("true", "ours", "sindy") if all(r.sindy is not None for r in results) else ("true", "ours")
     for j, r in enumerate(results):
         n = len(r.coords)
         axes[0, j].set_title(TITLES.get(r.system, r.system), fontsize=12)
         for i, c in enumerate(r.coords):
             ax = axes[i, j]                                         # acceleration vs time
-            for who in ("true", "ours", "sindy"):
+            for who in who_all:
                 ax.plot(r.t, getattr(r, who).Xdot[:, n + i], **styles[who])
             ax.set_ylim(*_limits(r.true.Xdot[:, n + i]))
             ax.axvline(t_train, color="gray", ls="-.", lw=1)
@@ -80,9 +83,10 @@ def fig4(results, path, t_train: float = T_TRAIN) -> Path:
                     ha="right", va="top", fontsize=8, color="gray")
             ax.text(t_train + 0.08, 0.97, "extrapolation", transform=ax.get_xaxis_transform(),
                     ha="left", va="top", fontsize=8, color="gray")
-            _mark_divergence(ax, r.sindy, styles["sindy"]["color"])
+            if r.sindy is not None:
+                _mark_divergence(ax, r.sindy, styles["sindy"]["color"])
             ax = axes[n + i, j]                                     # phase portrait
-            for who in ("true", "ours", "sindy"):
+            for who in who_all:
                 X = getattr(r, who).X
                 ax.plot(X[:, i], X[:, n + i], **styles[who])
                 if k_train < len(X) and np.isfinite(X[k_train, i]):
@@ -96,11 +100,12 @@ def fig4(results, path, t_train: float = T_TRAIN) -> Path:
             axes[i, j].axis("off")
         ax = axes[-1, j]                                            # error of q over time
         floor = 1e-16
-        for who in ("ours", "sindy"):
+        for who in who_all[1:]:
             d = getattr(r, who).X[:, :n] - r.true.X[:, :n]
             ax.semilogy(r.t, np.maximum(np.sqrt(np.mean(d ** 2, axis=1)), floor), **styles[who])
         ax.axvline(t_train, color="gray", ls="-.", lw=1)
-        _mark_divergence(ax, r.sindy, styles["sindy"]["color"])
+        if r.sindy is not None:
+            _mark_divergence(ax, r.sindy, styles["sindy"]["color"])
         ax.set_ylim(floor / 3, 1e2)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("RMS error of q", fontsize=10)
@@ -124,7 +129,7 @@ def _mark_divergence(ax, r: Rollout, color):
 
 
 def make_figures(out_dir, cells=None, systems=("spherical", "double", "cart"), progress=None,
-                 echo=None) -> list:
+                 echo=None, sindy=True) -> list:
     """Measure (:func:`~lsindy_cas.paper.comparison.measure`) and draw Figs. 3 and 4; write them
     and their numbers to ``out_dir``.
 
@@ -140,13 +145,16 @@ def make_figures(out_dir, cells=None, systems=("spherical", "double", "cart"), p
         Told what is being computed (e.g. ``print`` to stderr).
     echo : callable(str), optional
         Receives the Markdown tables of the numbers (e.g. ``print``).
+    sindy : bool or None
+        Include the SINDy baseline (needs pysindy; None: when installed).  Without it the
+        figures show the library, KRONIC and our model only.
 
     Returns
     -------
     list of Path
         ``fig3_complexity.png``, ``fig4_extrapolation.png``, ``baselines.md``, ``baselines.json``.
     """
-    comp, extra = measure(systems, cells, progress)
+    comp, extra = measure(systems, cells, progress, sindy=sindy)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = [fig3(comp, out / "fig3_complexity.png"), fig4(extra, out / "fig4_extrapolation.png")]
