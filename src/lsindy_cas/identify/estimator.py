@@ -80,10 +80,7 @@ class LagrangianSINDy:
     coords_ : list of str
     coef_ : array (p,)            energy coefficients ξ (H = Θ ξ)
     lagrangian_coef_ : array (p,) Lagrangian coefficients ξ_L (eq. 7)
-    coef_std_, lagrangian_coef_std_ : array (p,)
-                                  standard errors of ξ and ξ_L (0 off the support; jackknife,
-                                  :mod:`lsindy_cas.identify.standard_errors`)
-    std_method_ : str             how they were obtained, e.g. "jackknife over 10 runs"
+    coef_std_, lagrangian_coef_std_ : standard errors of ξ, ξ_L (jackknife, see std_method_)
     support_ : tuple of int
     n_terms_ : int                the k used (chosen or given)
     hamiltonian_, lagrangian_ : sympy.Expr
