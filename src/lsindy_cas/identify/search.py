@@ -354,10 +354,8 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
             if progress is not None and len(sc):
                 progress(done, len(supports))
         return supports, np.concatenate(scores), np.concatenate(pivots) < DEGENERACY_TOL
-    combos = combinations(len(free), k - len(forced))
-    supports = np.hstack([np.broadcast_to(np.array(forced, dtype=np.int64), (len(combos), len(forced))),
-                          free[combos]])
-    supports.sort(axis=1)
+    from .distributed import subtree_supports
+    supports = subtree_supports(forced, free, k)
     scores, degenerate = score_supports(A, b, supports, D, progress)
     return supports, scores, degenerate
 
