@@ -48,44 +48,45 @@ def _point(name: str, mass: float, pos: str) -> str:
             f'diaginertia="{i} {i} {i}"/>')
 
 
-def _cart_xml(mc, mp, L, g, cart_damping, pivot_damping, cart_frictionloss, timestep) -> str:
-    # hinge axis -y: rotating (0, 0, -L) by theta about -y gives (L sin θ, 0, -L cos θ)
-    return f"""<mujoco model="cart_pendulum">
+_MASSLESS = (f'<inertial pos="0 0 0" mass="1e-9" '
+             f'diaginertia="{POINT_INERTIA} {POINT_INERTIA} {POINT_INERTIA}"/>')
+
+
+def _model(name: str, g, timestep, bodies: str, actuator: str) -> str:
+    """One MJCF model: RK4 at ``timestep``, no contacts, energy computed, the given bodies."""
+    return f"""<mujoco model="{name}">
   <option timestep="{timestep!r}" gravity="0 0 {-g!r}" integrator="RK4">
     <flag contact="disable" energy="enable"/>
   </option>
   <worldbody>
-    {_point("cart", mc, "0 0 0")}
-      <joint name="x" type="slide" axis="1 0 0" damping="{cart_damping!r}"
-             frictionloss="{cart_frictionloss!r}"/>
-      <body name="pivot" pos="0 0 0">
-        <inertial pos="0 0 0" mass="1e-9" diaginertia="{POINT_INERTIA} {POINT_INERTIA} {POINT_INERTIA}"/>
-        <joint name="theta" type="hinge" axis="0 -1 0" damping="{pivot_damping!r}"/>
-        {_point("bob", mp, f"0 0 {-L!r}")}</body>
-      </body>
-    </body>
+    {bodies}
   </worldbody>
-  <actuator><motor name="force" joint="x" gear="1"/></actuator>
+  <actuator>{actuator}</actuator>
 </mujoco>"""
 
 
+def _cart_xml(mc, mp, L, g, cart_damping, pivot_damping, cart_frictionloss, timestep) -> str:
+    # hinge axis -y: rotating (0, 0, -L) by theta about -y gives (L sin θ, 0, -L cos θ)
+    return _model("cart_pendulum", g, timestep, f"""{_point("cart", mc, "0 0 0")}
+      <joint name="x" type="slide" axis="1 0 0" damping="{cart_damping!r}"
+             frictionloss="{cart_frictionloss!r}"/>
+      <body name="pivot" pos="0 0 0">
+        {_MASSLESS}
+        <joint name="theta" type="hinge" axis="0 -1 0" damping="{pivot_damping!r}"/>
+        {_point("bob", mp, f"0 0 {-L!r}")}</body>
+      </body>
+    </body>""", '<motor name="force" joint="x" gear="1"/>')
+
+
 def _double_xml(m1, m2, L1, L2, g, damping1, damping2, timestep) -> str:
-    return f"""<mujoco model="double_pendulum">
-  <option timestep="{timestep!r}" gravity="0 0 {-g!r}" integrator="RK4">
-    <flag contact="disable" energy="enable"/>
-  </option>
-  <worldbody>
-    <body name="link1" pos="0 0 0">
-      <inertial pos="0 0 0" mass="1e-9" diaginertia="{POINT_INERTIA} {POINT_INERTIA} {POINT_INERTIA}"/>
+    return _model("double_pendulum", g, timestep, f"""<body name="link1" pos="0 0 0">
+      {_MASSLESS}
       <joint name="q1" type="hinge" axis="0 -1 0" damping="{damping1!r}"/>
       {_point("bob1", m1, f"0 0 {-L1!r}")}
         <joint name="q2" type="hinge" axis="0 -1 0" damping="{damping2!r}"/>
         {_point("bob2", m2, f"0 0 {-L2!r}")}</body>
       </body>
-    </body>
-  </worldbody>
-  <actuator><motor name="moment" joint="q1" gear="1"/></actuator>
-</mujoco>"""
+    </body>""", '<motor name="moment" joint="q1" gear="1"/>')
 
 
 @dataclass
