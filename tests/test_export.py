@@ -1,6 +1,7 @@
 """``lsindy export``: the generated C agrees with the Python model to round-off."""
 import ctypes
 import json
+import os
 import shutil
 import subprocess
 
@@ -69,3 +70,54 @@ def test_export_bad_input(cart_model, tmp_path, capsys):
     assert "lacks hamiltonian_terms" in capsys.readouterr().err
     assert main(["export", str(cart_model), "--c", str(tmp_path), "--name", "a-b"]) == 2
     assert "C identifier" in capsys.readouterr().err
+
+
+def test_friction_and_relative_models_export(tmp_path):
+    """A model with viscous and Coulomb friction, energy relative (passive data): the C code carries
+    the friction forces (Coulomb as the ODE's tanh) and matches the Python ODE."""
+    path = tmp_path / "fric.json"
+    path.write_text(json.dumps({
+        "coords": ["x", "theta"], "actuated": ["x"], "energy_scale": "relative",
+        "normalised_by": "theta_dot**2",
+        "hamiltonian_terms": {"x_dot**2": 11.0, "theta_dot**2": 1.0,
+                              "theta_dot*x_dot*cos(theta)": 2.0, "cos(theta)": -19.62},
+        "rayleigh_terms": {"x_dot**2": 3.0, "theta_dot**2": 0.1, "Abs(x_dot)": 4.0}}))
+    model = LagrangianSINDy.load(path)
+    out = tmp_path / "c"
+    out.mkdir()
+    assert main(["export", str(path), "--c", str(out), "--name", "fric"]) == 0
+    clib = _load(out, "fric")
+    ode = model.ode()
+    rng = np.random.default_rng(3)
+    xs = rng.uniform(-2, 2, (20, 4))
+    xs[:3, 2] = [0.0, 1e-3, -5e-3]          # cart velocities where the smooth sign bends
+    for x in xs:
+        u = rng.uniform(-10, 10, 2)
+        want = np.asarray(ode(x, u)).ravel()
+        np.testing.assert_allclose(_call(clib, "fric_ode", x, u), want, rtol=1e-12, atol=1e-12)
+    # the friction is really in there: the same state without it accelerates differently
+    frictionless = LagrangianSINDy.load(path)
+    d = json.loads(path.read_text())
+    del d["rayleigh_terms"]
+    path.write_text(json.dumps(d))
+    frictionless = LagrangianSINDy.load(path)
+    x = np.array([0.0, 0.5, 0.7, -0.3])
+    assert not np.allclose(np.asarray(frictionless.ode()(x, [0, 0])).ravel(),
+                           _call(clib, "fric_ode", x, np.zeros(2)))
+
+
+def test_export_refuses_unwritable_or_file_target(cart_model, tmp_path, capsys):
+    target = tmp_path / "not_a_dir"
+    target.write_text("x")
+    assert main(["export", str(cart_model), "--c", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    if os.access(locked, os.W_OK):          # root ignores the mode bits: a read-only file system
+        locked = "/sys"
+        if not os.path.isdir(locked):
+            pytest.skip("running as root without a read-only file system to write into")
+    assert main(["export", str(cart_model), "--c", str(locked)]) == 2
+    err = capsys.readouterr().err
+    assert "not writable" in err and err.count("\n") == 1

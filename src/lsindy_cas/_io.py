@@ -27,7 +27,7 @@ def check_writable(path, what: str = "output file") -> Path:
         raise ValueError(f"{what} {path} is a directory; give a file name")
     if not parent.is_dir():
         raise ValueError(f"{what} {path}: directory {parent} does not exist (create it first)")
-    if not os.access(parent, os.W_OK | os.X_OK):
+    if not os.access(parent, os.W_OK | os.X_OK) or not _can_create_in(parent):
         raise ValueError(f"{what} {path}: directory {parent} is not writable")
     if path.exists() and not os.access(path, os.W_OK):
         raise ValueError(f"{what} {path} exists and is not writable")
@@ -50,9 +50,19 @@ def output_dir(path, what: str = "output directory") -> Path:
     if not path.exists():
         check_writable(path, what)
         path.mkdir()
-    if not os.access(path, os.W_OK | os.X_OK):
+    if not os.access(path, os.W_OK | os.X_OK) or not _can_create_in(path):
         raise ValueError(f"{what} {path} is not writable")
     return path
+
+
+def _can_create_in(folder: Path) -> bool:
+    """Whether a file can really be created in ``folder`` (``os.access`` says yes to root on a
+    read-only file system such as /sys)."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
 
 
 def _umask() -> int:

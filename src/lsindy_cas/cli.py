@@ -61,6 +61,10 @@ def main(argv=None) -> int:
     except BrokenPipeError:       # output piped into e.g. `head`: stop quietly
         sys.stderr.close()
         return 0
+    except OSError as exc:        # a file that passed the up-front checks failed to write or read
+        print(f"lsindy {args.command}: error: {exc.strerror or exc}"
+              + (f": {exc.filename}" if exc.filename else ""), file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"lsindy {args.command}: interrupted", file=sys.stderr)
         return 130
