@@ -292,13 +292,13 @@ class LagrangianSINDy:
         admissible = Admissibility.for_balance(lib, bal, forced, scale_system, excluded)
         # 5. support and k
         noise = (noise_model(bal, state_var, smoothing)
-                 if state_var is not None and bal.centred else None)
+                 if state_var is not None and bal.per_sample else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
                      scale_system=scale_system, max_terms=self.max_terms, noise=noise,
                      progress=progress, time_limit=self.time_limit)
         coef = sel.coef
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
-        if state_var is not None and bal.centred:
+        if state_var is not None and bal.per_sample:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
                                                       scale_system, excluded, row_gradients(bal))
         # 7. dissipation: drop the terms the data do not support and fit again without them
