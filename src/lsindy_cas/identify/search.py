@@ -338,7 +338,11 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
     if b is not None:
         An, _ = normalise_columns(A)
         G, c, bb = An.T @ An, An.T @ b, float(b @ b)
-        if k == len(forced):
+        if k == len(forced) or not forced:
+            # one tree over every support (no per-subtree overhead).  Without forced terms the
+            # first level appends free[i] exactly as a subtree's root does (same formulas, no
+            # earlier rows), so the numbers are those of the Dask workers' subtrees bit for bit
+            # (tests/test_distributed.py)
             supports, scores, pivots = tree_scores(G, c, bb, forced, free, k, progress)
             return supports, scores, pivots < DEGENERACY_TOL
         # subtree by subtree (supports whose smallest free column is free[i]), as the Dask
