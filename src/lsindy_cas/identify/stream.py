@@ -105,7 +105,8 @@ def compressed_balance(library, trajectories, form: str, *, passive: bool | None
     p = len(library)
     centred = form == "integral"
     width = p + (0 if passive else 1) + (1 if centred else 0)
-    blocks, groups, rules, n_total = [], [], [], 0
+    M = np.empty((len(trajectories) * N_BLOCKS * width, width))
+    groups, rules, n_total = [], [], 0
     for k, tr in enumerate(trajectories):
         n = tr.n_samples
         n_total += n
@@ -132,9 +133,8 @@ def compressed_balance(library, trajectories, form: str, *, passive: bool | None
             mean = total / n
             for Rb in R:                                   # centre: exact column operation
                 Rb[:, :-1] -= Rb[:, -1:] * mean[None, :]
-        blocks += R
+        M[k * N_BLOCKS * width:(k + 1) * N_BLOCKS * width] = np.vstack(R)
         groups.append(np.full(len(R) * width, k))
-    M = np.vstack(blocks)
     stride = max(1, -(-n_total // MAX_STATES))
     X = np.vstack([tr.X[::stride] for tr in trajectories])
     D = library.grad(X).reshape(-1, p)
