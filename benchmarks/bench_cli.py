@@ -107,9 +107,12 @@ def stage_times(csv: Path, out: Path) -> dict:
     import cProfile
     import pstats
     from lsindy_cas.cli import main
+    import contextlib
+    import io
     prof = cProfile.Profile()
     t0 = time.perf_counter()
-    prof.runcall(main, cli_args(csv, out))
+    with contextlib.redirect_stdout(io.StringIO()):
+        prof.runcall(main, cli_args(csv, out))
     total = time.perf_counter() - t0
     stats = pstats.Stats(prof).stats
     res = {}
