@@ -141,7 +141,7 @@ def derivative_form(library: Library, trajectories, passive: bool | None = None,
     """Γ ξ = P over all samples of all trajectories (paper eq. 4); needs accelerations ``qdd``.
 
     ``compress``/``chunk``: stream the rows into block-wise R factors (same Gram matrices, bounded
-    memory); None (default) does so when the dense rows would exceed
+    memory); None (default) does so when the dense rows and gradients would exceed
     :data:`lsindy_cas.identify.stream.STREAM_BUDGET` floats (see :func:`integral_form`).
     """
     passive = _is_passive(trajectories) if passive is None else passive
@@ -159,7 +159,8 @@ def _compress(library, trajectories, compress) -> bool:
     if compress is not None:
         return bool(compress)
     from .stream import STREAM_BUDGET
-    return sum(tr.n_samples for tr in trajectories) * len(library) > STREAM_BUDGET
+    n_state = 2 * len(library.coords.names)         # A (one row per sample) and D (2n per sample)
+    return sum(tr.n_samples for tr in trajectories) * len(library) * (1 + n_state) > STREAM_BUDGET
 
 
 def _resolve_hold(tr: Trajectory, hold: str) -> str:
@@ -269,8 +270,9 @@ def integral_form(library: Library, trajectories, window: int | None = None, str
         All-windows form without weights: stream the rows, ``chunk`` samples at a time, into
         block-wise R factors (:mod:`lsindy_cas.identify.stream`) — the same Gram matrices per
         trajectory and jackknife block, so the same search, held-out errors and jackknife, in
-        memory independent of the number of samples.  None (default): when the dense rows would
-        exceed ``STREAM_BUDGET`` floats.
+        memory independent of the number of samples.  None (default): when the dense rows and
+        state gradients would exceed ``STREAM_BUDGET`` floats (then the noise model and the
+        errors-in-variables correction, which need one row per sample, are not applied).
 
     Returns
     -------

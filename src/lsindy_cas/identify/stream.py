@@ -35,7 +35,9 @@ from .balance import EnergyBalance, _is_passive, _work
 
 __all__ = ["compressed_balance", "block_edges", "STREAM_BUDGET", "MAX_STATES", "CHUNK"]
 
-STREAM_BUDGET = 2 ** 24    # floats of dense rows (128 MB) above which balances are streamed
+# Floats of the dense rows A and state gradients D (512 MB) above which balances are streamed:
+# e.g. more than ~64,000 samples of the double pendulum's 209-term library.
+STREAM_BUDGET = 2 ** 26
 MAX_STATES = 5000          # states kept for the per-sample checks
 CHUNK = 8192               # samples per QR update
 N_BLOCKS = 10              # blocks per trajectory: uncertainty.N_BLOCKS (5 folds nest in them)
