@@ -68,6 +68,13 @@ class EnergyBalance:
         Rayleigh dissipation columns (:mod:`lsindy_cas.identify.dissipation`), rows as ``A``'s.
         When set, ``A`` and ``b`` are projected off their span and ``raw`` holds the unprojected
         ``(A, b)``.
+    intercept : array (n_rows,), optional
+        Compressed (streamed) balance: the rows' entries of the per-trajectory intercept column
+        that centred rows are orthogonal to (dense centred rows: √w, see ``intercept_column``).
+    n_data_rows : int, optional
+        Compressed (streamed) balance (:mod:`lsindy_cas.identify.stream`): the number of rows
+        of the uncompressed balance; ``A``, ``b`` then hold block-wise R factors with the same
+        Gram matrices, and ``X``, ``D`` a subsample of the states.
     """
 
     A: np.ndarray
@@ -81,10 +88,33 @@ class EnergyBalance:
     work_rules: list | None = None
     dissipation: np.ndarray | None = None
     raw: tuple | None = None
+    intercept: np.ndarray | None = None
+    n_data_rows: int | None = None
 
     @property
     def passive(self) -> bool:
         return self.b is None
+
+    @property
+    def compressed(self) -> bool:
+        """Rows are block-wise R factors of the balance (streamed), not one row per sample."""
+        return self.n_data_rows is not None
+
+    @property
+    def n_rows(self) -> int:
+        """Rows of the (uncompressed) balance: windows or samples."""
+        return len(self.A) if self.n_data_rows is None else int(self.n_data_rows)
+
+    @property
+    def per_sample(self) -> bool:
+        """Row i belongs to sample i (dense all-windows form): per-sample noise model and EIV."""
+        return self.centred and not self.compressed
+
+    def intercept_column(self) -> np.ndarray:
+        """(n_rows,): the per-trajectory constant column of centred rows (√w per dense row)."""
+        if self.intercept is not None:
+            return self.intercept
+        return np.sqrt(np.ones(len(self.A)) if self.weights is None else self.weights)
 
     @property
     def n_groups(self) -> int:
@@ -106,13 +136,31 @@ def _groups(trajectories, lengths=None) -> np.ndarray:
     return np.repeat(np.arange(len(lengths)), lengths)
 
 
-def derivative_form(library: Library, trajectories, passive: bool | None = None) -> EnergyBalance:
-    """Γ ξ = P over all samples of all trajectories (paper eq. 4); needs accelerations ``qdd``."""
+def derivative_form(library: Library, trajectories, passive: bool | None = None,
+                    compress: bool | None = None, chunk: int | None = None) -> EnergyBalance:
+    """Γ ξ = P over all samples of all trajectories (paper eq. 4); needs accelerations ``qdd``.
+
+    ``compress``/``chunk``: stream the rows into block-wise R factors (same Gram matrices, bounded
+    memory); None (default) does so when the dense rows and gradients would exceed
+    :data:`lsindy_cas.identify.stream.STREAM_BUDGET` floats (see :func:`integral_form`).
+    """
     passive = _is_passive(trajectories) if passive is None else passive
+    if _compress(library, trajectories, compress):
+        from .stream import compressed_balance
+        return compressed_balance(library, trajectories, "derivative", passive=passive,
+                                  chunk=chunk)
     A = np.vstack([library.gamma(tr.X, tr.Xdot) for tr in trajectories])
     b = None if passive else np.concatenate([tr.power for tr in trajectories])
     X, D = _stack_states(library, trajectories)
     return EnergyBalance(A, b, D, X, "derivative", groups=_groups(trajectories))
+
+
+def _compress(library, trajectories, compress) -> bool:
+    if compress is not None:
+        return bool(compress)
+    from .stream import STREAM_BUDGET
+    n_state = 2 * len(library.coords.names)         # A (one row per sample) and D (2n per sample)
+    return sum(tr.n_samples for tr in trajectories) * len(library) * (1 + n_state) > STREAM_BUDGET
 
 
 def _resolve_hold(tr: Trajectory, hold: str) -> str:
@@ -195,7 +243,8 @@ def _weighted_centre(M: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 def integral_form(library: Library, trajectories, window: int | None = None, stride: int = 1,
                   passive: bool | None = None, weights=None, hold: str = "auto",
-                  noise=None) -> EnergyBalance:
+                  noise=None, compress: bool | None = None, chunk: int | None = None
+                  ) -> EnergyBalance:
     """The integral (weak) energy balance: no derivatives of the data.
 
     Parameters
@@ -217,6 +266,13 @@ def integral_form(library: Library, trajectories, window: int | None = None, str
     noise : list of arrays (2n,), optional
         Per trajectory, the standard deviation of the noise left in each state column (see
         :func:`cumulative_work`); None: the states are taken as exact.
+    compress : bool, optional
+        All-windows form without weights: stream the rows, ``chunk`` samples at a time, into
+        block-wise R factors (:mod:`lsindy_cas.identify.stream`) — the same Gram matrices per
+        trajectory and jackknife block, so the same search, held-out errors and jackknife, in
+        memory independent of the number of samples.  None (default): when the dense rows and
+        state gradients would exceed ``STREAM_BUDGET`` floats (then the noise model and the
+        errors-in-variables correction, which need one row per sample, are not applied).
 
     Returns
     -------
@@ -228,6 +284,10 @@ def integral_form(library: Library, trajectories, window: int | None = None, str
         if weights is not None:
             raise ValueError("weights are only supported by the all-windows form (window=None)")
     passive = _is_passive(trajectories) if passive is None else passive
+    if window is None and weights is None and _compress(library, trajectories, compress):
+        from .stream import compressed_balance
+        return compressed_balance(library, trajectories, "integral", passive=passive, hold=hold,
+                                  noise=noise, chunk=chunk)
     if weights is not None and len(weights) != len(trajectories):
         raise ValueError(f"weights must hold one array per trajectory ({len(trajectories)}), "
                          f"got {len(weights)}")

@@ -253,7 +253,7 @@ def _null_dim(bal: EnergyBalance, S, score: float) -> int:
     sv = np.linalg.svd(normalise_columns(bal.A[:, list(S)])[0], compute_uv=False)
     if bal.passive:
         return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(sv[-1] ** 2, 1e-300)))
-    return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(score, 1e-300) / len(bal.A)))
+    return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(score, 1e-300) / bal.n_rows))
 
 
 def _near_ties(fit: FitRecord, n: int = 5) -> list:

@@ -95,6 +95,9 @@ def _cumulative(lib: Library, tr) -> np.ndarray:
 
 def dissipation_columns(lib: Library, trajectories, bal) -> np.ndarray:
     """Rows of the dissipation columns matching the balance ``bal``'s rows: (n_rows, r)."""
+    if bal.compressed:
+        raise ValueError("dissipation needs one balance row per sample; these data are too large "
+                         f"for that ({bal.n_rows:,} rows): use fewer samples")
     if bal.form == "derivative":
         return np.vstack([power_columns(lib, tr.X) for tr in trajectories])
     if not bal.centred:

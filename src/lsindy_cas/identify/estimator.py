@@ -21,7 +21,7 @@ from .status import assess
 from .standard_errors import coefficient_errors
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import energy_variance, noise_model, row_gradients, sample_weights
-from .steps import _check_trajectories, _corrected, combine, run_variance  # noqa: F401
+from .steps import _check_trajectories, _corrected, combine, drift_simulator, run_variance  # noqa
 
 __all__ = ["LagrangianSINDy"]
 
@@ -245,8 +245,9 @@ class LagrangianSINDy:
         """The one verdict on the fit (:func:`.status.assess`): ``status_``, ``status_reasons_``,
         ``ok_``, also in ``diagnostics_``.  Never raises: an undetermined fit is data."""
         d = self.diagnostics_
-        simulate = lambda x0, t, u: simulate_ode(self.ode(), x0, t, u, len(self.coords_),  # noqa: E731
-                                                  rtol=1e-9, atol=1e-10)[0]
+        simulate = (drift_simulator(self.ode(), len(self.coords_)) if self.rayleigh_ == 0 else  # stiff
+                    lambda x0, t, u: simulate_ode(self.ode(), x0, t, u, len(self.coords_),  # noqa
+                                                  rtol=1e-9, atol=1e-10)[0])
         d.status, d.status_reasons, d.checks = assess(self._record, d, simulate)
         self.status_, self.status_reasons_ = d.status, list(d.status_reasons)
         del self._record
@@ -292,13 +293,13 @@ class LagrangianSINDy:
         admissible = Admissibility.for_balance(lib, bal, forced, scale_system, excluded)
         # 5. support and k
         noise = (noise_model(bal, state_var, smoothing)
-                 if state_var is not None and bal.centred else None)
+                 if state_var is not None and bal.per_sample else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
                      scale_system=scale_system, max_terms=self.max_terms, noise=noise,
                      progress=progress, time_limit=self.time_limit)
         coef = sel.coef
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
-        if state_var is not None and bal.centred:
+        if state_var is not None and bal.per_sample:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
                                                       scale_system, excluded, row_gradients(bal))
         # 7. dissipation: drop the terms the data do not support and fit again without them

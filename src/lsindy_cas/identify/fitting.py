@@ -25,8 +25,15 @@ NULL_RTOL = 1e-7
 
 
 def column_norms(A: np.ndarray) -> np.ndarray:
-    """Euclidean norm of every column of ``A`` (zeros kept)."""
-    return np.linalg.norm(A, axis=0)
+    """Euclidean norm of every column of ``A`` (zeros kept).
+
+    Computed 64 columns at a time, so a tall ``A`` (a streamed balance) needs no full-size
+    temporary; each column's sum is the same as in one pass.
+    """
+    A = np.asarray(A)
+    if A.ndim != 2 or A.shape[1] <= 64:
+        return np.linalg.norm(A, axis=0)
+    return np.concatenate([np.linalg.norm(A[:, j:j + 64], axis=0) for j in range(0, A.shape[1], 64)])
 
 
 def normalise_columns(A: np.ndarray):

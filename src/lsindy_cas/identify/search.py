@@ -286,14 +286,19 @@ def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.
         if pos + 256 > len(order) and len(order) < n_ok:
             order = _best_first(keys, min(n_ok, 4 * len(order)))
         block = order[pos:pos + 256]
+        # cheap batched rejection: a k-term fit whose own coefficients say "fewer terms"; only
+        # the first n_report of those and the others are looked at one by one, in order
         red = reducible(G, c, supports[block])
-        for idx, r in zip(block, red):
-            pos += 1
+        n_red = np.cumsum(red)
+        look = np.union1d(np.flatnonzero(red)[:max(0, n_report - n_reducible)],
+                          np.flatnonzero(~red))
+        base, start = n_reducible, pos
+        pos, n_reducible = start + len(block), base + int(n_red[-1])
+        for j in look:
+            idx = block[j]
             S = tuple(supports[idx].tolist())
-            if r:   # cheap batched rejection: a k-term fit whose own coefficients say "fewer terms"
-                n_reducible += 1
-                if n_reducible <= n_report:
-                    candidates.append(Candidate(S, float(scores[idx]), False, REDUCIBLE_REASON))
+            if red[j]:
+                candidates.append(Candidate(S, float(scores[idx]), False, REDUCIBLE_REASON))
                 continue
             n_visited += 1
             coef, nd = coef_on_support(A, b, S, scale_system)
@@ -307,6 +312,7 @@ def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.
             candidates.append(cand)
             if cand.admissible:
                 winner, null_dim = cand, nd
+                pos, n_reducible = start + j + 1, base + int(n_red[j])
                 break
     # a few runners-up for the diagnostics
     if pos + n_report > len(order):
@@ -338,7 +344,11 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
     if b is not None:
         An, _ = normalise_columns(A)
         G, c, bb = An.T @ An, An.T @ b, float(b @ b)
-        if k == len(forced):
+        if k == len(forced) or not forced:
+            # one tree over every support (no per-subtree overhead).  Without forced terms the
+            # first level appends free[i] exactly as a subtree's root does (same formulas, no
+            # earlier rows), so the numbers are those of the Dask workers' subtrees bit for bit
+            # (tests/test_distributed.py)
             supports, scores, pivots = tree_scores(G, c, bb, forced, free, k, progress)
             return supports, scores, pivots < DEGENERACY_TOL
         # subtree by subtree (supports whose smallest free column is free[i]), as the Dask

@@ -164,7 +164,7 @@ def _passive_null(fit) -> int:
     sol = np.linalg.lstsq(M, rhs, rcond=None)[0]
     score = max(float(np.sum((M @ sol - rhs) ** 2)), 1e-18)
     sv = np.linalg.svd(M, compute_uv=False)
-    return int(np.sum(sv ** 2 <= _NULL_FACTOR * score / len(M)))
+    return int(np.sum(sv ** 2 <= _NULL_FACTOR * score / (fit.balance.n_rows + len(A_s))))
 
 
 def _scale_unresolved(fit, found) -> list:

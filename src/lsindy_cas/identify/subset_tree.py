@@ -67,18 +67,33 @@ def _leaves(G, c, nodes: _Nodes, free, last):
     """All one-column extensions of ``nodes`` by a free column after each node's last one.
 
     Returns (parent index, column position in ``free``, explained ‖y‖², smallest pivot), in
-    lexicographic order.
+    lexicographic order.  Parents are taken in groups with the same last column, so only the
+    columns after it are computed (a third of the dense (parent, column) table for k = 3).
     """
-    everything = len(free) == G.shape[0]                      # no forced terms: skip the gather
-    Rf = nodes.R if everything else nodes.R[:, :, free]       # (B, j, nf)
+    nf = len(free)
+    everything = nf == G.shape[0]                             # no forced terms: skip the gather
     dg, cf = (np.diag(G), c) if everything else (np.diag(G)[free], c[free])
-    piv = dg[None, :] - np.einsum("bjf,bjf->bf", Rf, Rf)
-    num = cf[None, :] - np.einsum("bjf,bj->bf", Rf, nodes.y)
-    e = nodes.e[:, None] + num ** 2 / np.maximum(piv, 1e-300)
-    pmin = np.minimum(nodes.pmin[:, None], piv)
-    mask = np.arange(len(free))[None, :] > last[:, None]
-    parent, col = np.nonzero(mask)
-    return parent, col, e[mask], pmin[mask]
+    counts = np.maximum(nf - 1 - last, 0)
+    begin = np.cumsum(counts) - counts
+    total = int(counts.sum())
+    parent = np.repeat(np.arange(len(last)), counts)
+    col = np.repeat(last + 1, counts) + (np.arange(total) - np.repeat(begin, counts))
+    e_out, p_out = np.empty(total), np.empty(total)
+    order = np.argsort(last, kind="stable")
+    cuts = np.r_[0, np.flatnonzero(np.diff(last[order])) + 1, len(order)]
+    for a, z in zip(cuts[:-1], cuts[1:]):
+        rows = order[a:z]
+        lo = int(last[rows[0]]) + 1
+        if lo >= nf:
+            continue
+        R = nodes.R[rows]
+        Rf = R[:, :, lo:] if everything else R[:, :, free[lo:]]      # (b, j, nf − lo)
+        piv = dg[None, lo:] - np.einsum("bjf,bjf->bf", Rf, Rf)
+        num = cf[None, lo:] - np.einsum("bjf,bj->bf", Rf, nodes.y[rows])
+        idx = begin[rows][:, None] + np.arange(nf - lo)[None, :]
+        e_out[idx] = nodes.e[rows][:, None] + num ** 2 / np.maximum(piv, 1e-300)
+        p_out[idx] = np.minimum(nodes.pmin[rows][:, None], piv)
+    return parent, col, e_out, p_out
 
 
 def tree_scores(G: np.ndarray, c: np.ndarray, bb: float, forced, free, k: int,

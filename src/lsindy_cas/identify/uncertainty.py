@@ -222,9 +222,8 @@ class Jackknife:
     def __init__(self, bal: EnergyBalance, n_blocks: int = N_BLOCKS, ids=None):
         A = bal.A
         if bal.centred:
-            w = np.ones(len(A)) if bal.weights is None else bal.weights
             I = np.zeros((len(A), bal.n_groups))
-            I[np.arange(len(A)), bal.groups] = np.sqrt(w)
+            I[np.arange(len(A)), bal.groups] = bal.intercept_column()
             A = np.hstack([A, I])
         self.p = bal.A.shape[1]
         self.n_int = A.shape[1] - self.p
@@ -314,6 +313,16 @@ def recentre(bal: EnergyBalance, keep: np.ndarray, A: np.ndarray, b=None):
     A : array (n_keep, k); b : array (n_keep,), optional
         Its rows (any columns).
     """
+    if bal.intercept is not None:      # compressed rows: project off the intercept column
+        v, g = bal.intercept[keep], bal.groups[keep]
+        A, b = A.copy(), (None if b is None else b.copy())
+        for k in np.unique(g):
+            m, vk = g == k, v[g == k]
+            vv = max(float(vk @ vk), 1e-300)
+            A[m] -= np.outer(vk, vk @ A[m]) / vv
+            if b is not None:
+                b[m] -= vk * (vk @ b[m]) / vv
+        return A, b
     w = np.ones(len(bal.A)) if bal.weights is None else bal.weights
     w, g = w[keep], bal.groups[keep]
     sw = np.sqrt(w)

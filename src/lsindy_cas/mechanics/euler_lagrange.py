@@ -86,6 +86,11 @@ class EulerLagrange:
 
     def equations(self) -> list:
         """Equations of motion as sympy ``Eq(M q̈, F)`` rows over ``<q>_ddot`` symbols."""
+        if "_equations" not in self.__dict__:        # derived once (printout, model file, ...)
+            self._equations = self._derive_equations()
+        return list(self._equations)
+
+    def _derive_equations(self) -> list:
         M, F = self.sympy_equations()
         qdd = sp.Matrix([sp.Symbol(n + "_ddot", real=True) for n in self.coords.names])
         lhs = M * qdd

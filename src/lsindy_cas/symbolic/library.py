@@ -17,6 +17,8 @@ import sympy as sp
 from .._validate import check_int
 from .coords import Coordinates
 
+_MAP = 512        # samples per evaluation of the mapped library functions
+
 __all__ = ["Library"]
 
 
@@ -184,16 +186,45 @@ class Library:
         return {
             "theta": ca.Function("theta", [x], [theta], opts),
             "gamma": ca.Function("gamma", [x, xd], [gamma], opts),
-            "grad": ca.Function("grad", [x], [ca.vec(jac_x)], opts),
-            "dqd": ca.Function("dqd", [x], [ca.vec(dqd)], opts),
-            "hess": ca.Function("theta_hess", [x], [ca.vertcat(*[ca.vec(h) for h in hess])], opts),
+            "grad": ca.Function("grad", [x], [ca.densify(ca.vec(jac_x))], opts),
+            "dqd": ca.Function("dqd", [x], [ca.densify(ca.vec(dqd))], opts),
+            "hess": ca.Function("theta_hess", [x],
+                                [ca.densify(ca.vertcat(*[ca.vec(h) for h in hess]))], opts),
         }
 
     def _eval(self, name: str, *arrays) -> np.ndarray:
+        """``name`` evaluated at every sample: (N, out_size).
+
+        Samples go through one map of ``_MAP`` evaluations, built once per function (building a
+        map costs time in proportion to its size), in blocks written straight into the output
+        (``Function.buffer``: a C-ordered (N, k) array is CasADi's column-major (k, N)); the last
+        block is padded with copies of the last sample.
+        """
         f = self._functions[name]
         n_samples = arrays[0].shape[0]
-        out = f.map(n_samples)(*[np.asarray(a, float).T for a in arrays])
-        return np.asarray(out).T                              # (N, out_size)
+        m = min(_MAP, n_samples)
+        fm = self._maps.get((name, m))
+        if fm is None:
+            fm = self._maps[(name, m)] = f.map(m)
+        buf, trigger = fm.buffer()
+        ins = [np.empty((m, a.shape[1])) for a in arrays]
+        res = np.empty((m, f.nnz_out(0)))
+        for i, a in enumerate(ins):
+            buf.set_arg(i, memoryview(a))
+        buf.set_res(0, memoryview(res))
+        out = np.empty((n_samples, f.nnz_out(0)))
+        for lo in range(0, n_samples, m):
+            hi = min(n_samples, lo + m)
+            for a, src in zip(ins, arrays):
+                a[:hi - lo] = src[lo:hi]
+                a[hi - lo:] = src[hi - 1]
+            trigger()
+            out[lo:hi] = res[:hi - lo]
+        return out
+
+    @cached_property
+    def _maps(self) -> dict:
+        return {}
 
     def _states(self, X) -> np.ndarray:
         X = np.atleast_2d(np.asarray(X, dtype=float))
