@@ -24,6 +24,16 @@ accumulated cost plus the current unstable-mode term are kept (a beam); the plan
 proven optimal and :attr:`proven` is False.  Otherwise the returned first level is that of an
 optimal sequence over all ``len(levels)^horizon``.
 
+The cart: pushes move the cart speed and the pole rate in a fixed ratio
+(``ratio = B_xdot / B_thetadot``), so ``v0 = x_dot - ratio * theta_dot`` and
+``p = x - ratio * phi`` are not moved by the pushes at all; on the linearisation they obey
+``p' = v0``, ``v0' = kappa * phi``: a double integrator driven by the pole's lean.  Its LQR
+value (lean as the input, closed-loop frequency ``centre_frequency``), times ``centre_weight``,
+is added to the terminal cost and ``centre_weight * dt * p^2`` to the stage cost: over a horizon
+of well under a second this is what makes the plan lean the pole so that the cart drifts back
+to the centre (the DARE value of the full linearisation, computed for a continuous force,
+does not: it expects the cart to be returned by force).
+
 The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
 rate change over one push of the largest force from rest at the upright: a band narrower than
 one kick would make every reversing push a violation.
@@ -65,6 +75,13 @@ class SequenceBalancer(PulseBalancer):
         with ``input_weight`` (per N^2 s) they give the DARE value used as terminal cost.
     terminal_weight : float
         Factor on the DARE value at the horizon's end.
+    centre_weight : float
+        Weight of the cart's return to the centre (module docstring): the LQR value of the
+        slow subsystem ``(p, v0)`` is added to the terminal cost, its state cost ``p^2`` to
+        the stage cost.
+    centre_frequency : float
+        Closed-loop natural frequency (rad/s) of that LQR design, i.e. how fast the cart is
+        to return (a slower return needs a smaller lean).
     lean_weight : float
         Weight of the lean-reference term (small by default: the DARE value returns the cart).
     **options
@@ -89,7 +106,8 @@ class SequenceBalancer(PulseBalancer):
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=16, max_frontier=500, rate_band=None, violation_weight=1e4,
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
-                 terminal_weight=1.0, lean_weight=1e-6, **options):
+                 terminal_weight=1.0, lean_weight=1e-6, centre_weight=10.0, centre_frequency=0.5,
+                 **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
@@ -134,6 +152,20 @@ class SequenceBalancer(PulseBalancer):
         self.Q = Q * self.dt
         self.P = terminal_weight * solve_discrete_are(self.A, self.B[:, None], self.Q,
                                                       np.array([[input_weight * self.dt]]))
+        # the slow subsystem: p = x - ratio * phi, v0 = x_dot - ratio * theta_dot obey
+        # p' = v0, v0' = kappa * phi (pushes do not move them); its LQR value with the lean as
+        # input, closed-loop frequency centre_frequency, is a terminal cost that returns the cart
+        self.centre_weight = check_real("centre_weight", centre_weight, nonnegative=True)
+        wc = check_real("centre_frequency", centre_frequency, positive=True)
+        from scipy.linalg import solve_continuous_are
+        Pc = solve_continuous_are(np.array([[0.0, 1.0], [0.0, 0.0]]),
+                                  np.array([[0.0], [self.kappa]]), np.diag([1.0, 0.0]),
+                                  np.array([[self.kappa ** 2 / wc ** 4]]))
+        T = np.zeros((2, 4))
+        T[0, self.ic], T[0, self.ip] = 1.0, -self.ratio
+        T[1, 2 + self.ic], T[1, 2 + self.ip] = 1.0, -self.ratio
+        self.P = self.P + self.centre_weight * T.T @ Pc @ T
+        self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
 
     def reset(self):
         """Forget the balancer's mode and its last plan (call between episodes)."""
