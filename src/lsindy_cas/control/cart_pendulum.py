@@ -84,7 +84,7 @@ def _balancer_kind(balance):
     if balance is False:
         return None, {}
     options = {} if balance is True else dict(balance)
-    method = options.pop("method", "auto")
+    method = options.pop("method", "auto" if balance is True else "pulse")
     kinds = {"auto": "auto", "pulse": PulseBalancer, "sequence": SequenceBalancer}
     if method not in kinds:
         raise ValueError(f"balance['method'] must be one of {sorted(kinds)}, got {method!r}.")
@@ -144,10 +144,10 @@ class SwingUpMPC(DiscreteInputMPC):
         uses :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer` instead (branch
         and bound over all level sequences, for plants whose push is nearly as large as the
         band; its own options ``max_frontier``, ``violation_weight``, ``state_weights``,
-        ``centre_weight``, ... are accepted then).  By default (``method "auto"``) the
-        sequence balancer is used when the model's :meth:`kick` is at least
-        :attr:`SEQUENCE_KICK`, the pulse balancer otherwise (then only the options both
-        take are accepted).  Waiting is the balancer's
+        ``centre_weight``, ... are accepted then); a dict without ``"method"`` means the
+        pulse balancer.  ``balance=True`` (or ``{"method": "auto"}``, which accepts only the
+        options both take) uses the sequence balancer when the model's :meth:`kick` is at
+        least :attr:`SEQUENCE_KICK`, the pulse balancer otherwise.  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
         without 0 in the set is an error).
     **options
