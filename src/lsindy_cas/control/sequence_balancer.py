@@ -10,10 +10,13 @@ same online gain/offset correction, reference lean and hand-over rule as the pul
 Cost of a sequence (every stage cost is non-negative)::
 
     sum_k  violation_weight * band_excess(z_k)^2 + lean_weight * dt * (phi_k - phi_ref)^2
-           + cart_weight * dt * x_k^2 + push_weight * [u_k != 0]   +   mode_weight * s_N^2
+           + dt * z_k' Q z_k + centre_weight * dt * p_k^2 + push_weight * [u_k != 0]
+    + mode_weight * s_N^2 + z_N' P z_N + centre_weight * (p_N, v0_N)' P_c (p_N, v0_N)
 
 with the band excess of the pole angle, pole rate and cart position as in :class:`PulseBalancer`
-(the cart's excess weighted ``track_weight`` times) and ``s`` the unstable mode.
+(the cart's excess weighted ``track_weight`` times), ``s`` the unstable mode, ``Q`` the
+diagonal ``state_weights`` (plus ``cart_weight`` on the cart), ``P`` its DARE value on the
+linearisation, and ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below).
 
 Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
 by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
@@ -26,7 +29,7 @@ optimal sequence over all ``len(levels)^horizon``.
 
 The cart: pushes move the cart speed and the pole rate in a fixed ratio
 (``ratio = B_xdot / B_thetadot``), so ``v0 = x_dot - ratio * theta_dot`` and
-``p = x - ratio * phi`` are not moved by the pushes at all; on the linearisation they obey
+``p = x - ratio * phi`` are not moved by the pushes (to first order in dt); they obey
 ``p' = v0``, ``v0' = kappa * phi``: a double integrator driven by the pole's lean.  Its LQR
 value (lean as the input, closed-loop frequency ``centre_frequency``), times ``centre_weight``,
 is added to the terminal cost and ``centre_weight * dt * p^2`` to the stage cost: over a horizon
@@ -83,7 +86,8 @@ class SequenceBalancer(PulseBalancer):
         Closed-loop natural frequency (rad/s) of that LQR design, i.e. how fast the cart is
         to return (a slower return needs a smaller lean).
     lean_weight : float
-        Weight of the lean-reference term (small by default: the DARE value returns the cart).
+        Weight of the lean-reference term (small by default: the centring value returns the
+        cart).
     **options
         ``angle_band``, ``region``, ``max_lean``, ``cart_frequency``, ``cart_damping``,
         ``lean_weight``, ``push_weight``, ``mode_weight``, ``track_margin``, ``track_weight``,
