@@ -13,13 +13,14 @@ and pole length each off by +-10 %, signs drawn per episode).  Success as in ``l
 
 Writes ``family.json`` and ``family.png`` to ``--out`` and prints a markdown table.
 
-    python benchmarks/bench_family.py --out /tmp/family            # 12 plants x 20 starts (hours)
+    python benchmarks/bench_family.py --out /tmp/family --workers 2  # 12 plants x 20 starts (hours)
     python benchmarks/bench_family.py --out /tmp/family --quick    # 3 plants x 3 starts
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 from pathlib import Path
@@ -37,12 +38,26 @@ PLANTS = [(1.0, 0.1, 1.0), (0.8, 0.2, 0.7), (0.5, 0.05, 1.2), (0.5, 0.5, 1.5), (
           (1.0, 0.5, 0.6), (1.5, 0.05, 0.4), (2.0, 0.3, 0.3), (2.0, 0.5, 1.5), (1.5, 0.3, 1.0),
           (1.2, 0.1, 0.5), (0.7, 0.4, 0.8)]
 QUICK = [0, 1, 4]
-BALANCERS = {"pulse": True, "sequence": {"method": "sequence"}}
+#: ``auto`` (the default, ``balance=True``): the sequence balancer when the model's kick is at
+#: least ``SwingUpMPC.SEQUENCE_KICK``, the pulse balancer otherwise
+BALANCERS = {"auto": True, "pulse": {"method": "pulse"}, "sequence": {"method": "sequence"}}
+BAND_WIDTH = 1.0  # the success band |theta_dot| < 0.5 rad/s is 1 rad/s wide
 
 
 def kick(mc, L):
     """Pole-rate change (rad/s) of one push at rest upright, to first order: F dt / (m_c L)."""
     return FORCE * DT / (mc * L)
+
+
+def worst_kick(mc, mp, L):
+    """Largest kick (rad/s, one 10 N push from rest upright, on the true plant) over the 8 sign
+    patterns of the +-10 % mismatch, and the share of patterns whose kick exceeds the band's
+    width: there no push keeps the pole rate in the band, so those starts cannot succeed."""
+    kicks = []
+    for f in itertools.product((0.9, 1.1), repeat=3):
+        plant = Plant(systems.cart_pendulum(mc=mc * f[0], mp=mp * f[1], L=L * f[2]), DT)
+        kicks.append(float(abs(plant.step(np.array([0.0, np.pi, 0.0, 0.0]), FORCE)[-1, 3])))
+    return max(kicks), float(np.mean(np.array(kicks) > BAND_WIDTH))
 
 
 def run_cell(model, system, starts, scenario, balance, seed):
@@ -103,59 +118,79 @@ def figure(report, path):
     plt.close(fig)
 
 
+def run_plant(i, starts, models, balancers, seed):
+    """Identify plant ``i`` and run every cell on it; returns (row, table lines)."""
+    mc, mp, L = PLANTS[i]
+    system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
+    t0 = time.perf_counter()
+    identified, _ = identify_cart_pendulum(system)
+    worst, unreachable = worst_kick(mc, mp, L)
+    row = {"mc": mc, "mp": mp, "L": L, "kick": kick(mc, L), "worst_mismatch_kick": worst,
+           "mismatch_share_beyond_band": unreachable,
+           "identified_terms": {k: float(v) for k, v in identified.terms().items()},
+           "identify_seconds": time.perf_counter() - t0, "cells": {}}
+    lines = []
+    fmt = (lambda v: "-" if v is None else f"{v:.1f}")
+    for mname in models:
+        model = identified if mname == "identified" else system
+        for bname in balancers:
+            res = {}
+            for scen in ("nominal", "mismatch"):
+                res[scen] = run_cell(model, system, starts, scen, BALANCERS[bname],
+                                     [seed, i, scen == "mismatch"])
+                row["cells"][f"{mname}/{bname}/{scen}"] = res[scen]
+            n, m = res["nominal"], res["mismatch"]
+            plan = [c["plan_ms_p99"] for c in (n, m) if c["plan_ms_p99"] is not None]
+            lines.append(
+                f"| {mc} | {mp} | {L} | {row['kick']:.2f} | {worst:.2f} ({100 * unreachable:.0f} %)"
+                f" | {mname}/{bname} | {n['successes']}/{n['episodes']} | "
+                f"{m['successes']}/{m['episodes']} | {n['median_time_to_upright']:.2f} | "
+                f"{max(n['max_track_used'], m['max_track_used']):.2f} | "
+                f"{max(n['step_ms_p99'], m['step_ms_p99']):.1f} | "
+                f"{fmt(max(plan) if plan else None)} |")
+    row["seconds"] = time.perf_counter() - t0
+    return row, lines
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, help="output folder (family.json, family.png)")
     ap.add_argument("--quick", action="store_true", help="3 plants x 3 starts")
     ap.add_argument("--starts", type=int, help="random starts per plant (default 20; quick 3)")
     ap.add_argument("--plants", help="comma-separated plant indices into PLANTS")
-    ap.add_argument("--balancers", default="pulse,sequence", help="pulse, sequence or both")
+    ap.add_argument("--balancers", default="auto",
+                    help="comma-separated among auto (default), pulse, sequence")
     ap.add_argument("--models", default="identified,exact", help="identified, exact or both")
+    ap.add_argument("--workers", type=int, default=1, help="plants run in parallel processes")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     starts_n = args.starts or (3 if args.quick else 20)
-    if starts_n < 1:
-        ap.error("--starts must be >= 1")
+    if starts_n < 1 or args.workers < 1:
+        ap.error("--starts and --workers must be >= 1")
     idx = ([int(i) for i in args.plants.split(",")] if args.plants
            else QUICK if args.quick else range(len(PLANTS)))
     balancers = args.balancers.split(",")
     models = args.models.split(",")
     if not set(balancers) <= set(BALANCERS) or not set(models) <= {"identified", "exact"}:
-        ap.error("--balancers must be among pulse,sequence and --models among identified,exact")
+        ap.error("--balancers must be among auto,pulse,sequence and --models among "
+                 "identified,exact")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     starts = random_starts(starts_n, args.seed)
     report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE, "plants": []}
     t_all = time.perf_counter()
-    print("| mc | mp | L | kick | cell | nominal | mismatch | median t_up (s) | max abs x (m) "
-          "| step p99 (ms) | plan p99 (ms) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for i in idx:
-        mc, mp, L = PLANTS[i]
-        system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
-        t0 = time.perf_counter()
-        identified, _ = identify_cart_pendulum(system)
-        row = {"mc": mc, "mp": mp, "L": L, "kick": kick(mc, L),
-               "identified_terms": {k: float(v) for k, v in identified.terms().items()},
-               "identify_seconds": time.perf_counter() - t0, "cells": {}}
-        for mname in models:
-            model = identified if mname == "identified" else system
-            for bname in balancers:
-                res = {}
-                for scen in ("nominal", "mismatch"):
-                    res[scen] = run_cell(model, system, starts, scen, BALANCERS[bname],
-                                         [args.seed, i, scen == "mismatch"])
-                    row["cells"][f"{mname}/{bname}/{scen}"] = res[scen]
-                n, m = res["nominal"], res["mismatch"]
-                fmt = (lambda v: "-" if v is None else f"{v:.1f}")
-                print(f"| {mc} | {mp} | {L} | {row['kick']:.2f} | {mname}/{bname} | "
-                      f"{n['successes']}/{n['episodes']} | {m['successes']}/{m['episodes']} | "
-                      f"{n['median_time_to_upright']:.2f} | "
-                      f"{max(n['max_track_used'], m['max_track_used']):.2f} | "
-                      f"{max(n['step_ms_p99'], m['step_ms_p99']):.1f} | "
-                      f"{fmt(n['plan_ms_p99'] and max(n['plan_ms_p99'], m['plan_ms_p99'] or 0))} |",
-                      flush=True)
-        row["seconds"] = time.perf_counter() - t0
+    print("| mc | mp | L | kick | worst mismatch kick (share > band) | cell | nominal | "
+          "mismatch | median t_up (s) | max abs x (m) | step p99 (ms) | plan p99 (ms) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    jobs = [(i, starts, models, balancers, args.seed) for i in idx]
+    if args.workers == 1:
+        results = (run_plant(*job) for job in jobs)
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+        pool = ProcessPoolExecutor(args.workers)
+        results = pool.map(run_plant, *zip(*jobs))
+    for row, lines in results:
+        print("\n".join(lines), flush=True)
         report["plants"].append(row)
         (out / "family.json").write_text(json.dumps(report, indent=1))  # partial results too
     report["seconds"] = time.perf_counter() - t_all

@@ -84,16 +84,19 @@ def _balancer_kind(balance):
     if balance is False:
         return None, {}
     options = {} if balance is True else dict(balance)
-    method = options.pop("method", "pulse")
-    kinds = {"pulse": PulseBalancer, "sequence": SequenceBalancer}
+    method = options.pop("method", "auto" if balance is True else "pulse")
+    kinds = {"auto": "auto", "pulse": PulseBalancer, "sequence": SequenceBalancer}
     if method not in kinds:
         raise ValueError(f"balance['method'] must be one of {sorted(kinds)}, got {method!r}.")
     kind = kinds[method]
     own = {"track_margin", "correction"}  # set by the controller itself
-    allowed = (set(PulseBalancer.__init__.__kwdefaults__)
-               | set(kind.__init__.__kwdefaults__)) - own
-    if kind is SequenceBalancer:
-        allowed.discard("max_pushes")
+    pulse = set(PulseBalancer.__init__.__kwdefaults__)
+    if kind == "auto":  # options both balancers take, applied to the one chosen
+        allowed = pulse - own - {"max_pushes"}
+    else:
+        allowed = (pulse | set(kind.__init__.__kwdefaults__)) - own
+        if kind is SequenceBalancer:
+            allowed.discard("max_pushes")
     unknown = set(options) - allowed
     if unknown:
         raise ValueError(f"balance has unknown keys {sorted(unknown)}; known: "
@@ -140,8 +143,11 @@ class SwingUpMPC(DiscreteInputMPC):
         ``mode_weight``, ``track_weight``, ``brake_fraction``); ``{"method": "sequence"}``
         uses :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer` instead (branch
         and bound over all level sequences, for plants whose push is nearly as large as the
-        band; its own options ``max_frontier``, ``violation_weight``, ``state_weights``, ...
-        are accepted then).  Waiting is the balancer's
+        band; its own options ``max_frontier``, ``violation_weight``, ``state_weights``,
+        ``centre_weight``, ... are accepted then); a dict without ``"method"`` means the
+        pulse balancer.  ``balance=True`` (or ``{"method": "auto"}``, which accepts only the
+        options both take) uses the sequence balancer when the model's :meth:`kick` is at
+        least :attr:`SEQUENCE_KICK`, the pulse balancer otherwise.  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
         without 0 in the set is an error).
     **options
@@ -163,6 +169,10 @@ class SwingUpMPC(DiscreteInputMPC):
         Last relaxed plan: ``controls`` (horizon, n_control), ``forces`` (horizon,) relaxed
         forces (N), ``states`` (horizon, 4) predicted x_1..x_N, ``success``.
     """
+
+    #: model kick (rad/s) from which ``balance=True`` uses the sequence balancer: below it the
+    #: pulse balancer's few pushes suffice (the paper's plant: 0.5 rad/s)
+    SEQUENCE_KICK = 0.6
 
     default_weights = {"angle": 10.0, "position": 1.0, "velocity": 0.1, "rate": 0.1,
                        "terminal": 10.0, "input": 1e-2,
@@ -228,11 +238,25 @@ class SwingUpMPC(DiscreteInputMPC):
         self.balancer = None
         if balance is True and 0.0 not in self.levels:
             kind = None  # nothing to wait with: the relaxed plan decides everywhere
+        if kind == "auto":
+            kind = (SequenceBalancer if self.kick() >= self.SEQUENCE_KICK
+                    else PulseBalancer)
         if kind is not None:
             self.balancer = kind(
                 self.step_function, ode, self.levels, cart_index=ic, pole_index=ip,
                 upright=self.upright, track_limit=self.track_limit, dt=self.dt,
                 track_margin=track_margin, correction=self.correction, **balance_options)
+
+    def kick(self):
+        """The model's pole-rate change (rad/s) over one period of the largest force, from rest
+        at the upright (first order: ``F dt / (m_c L)``), from the linearised discrete step."""
+        ic, ip = self.cart_index, self.pole_index
+        x0 = np.zeros(4)
+        x0[ip] = self.upright
+        u = ca.SX.sym("u", 2)
+        jac = ca.Function("kick", [u], [ca.jacobian(self.step_function(x0, u), u)])
+        b = np.asarray(jac(np.zeros(2)), dtype=float)[2 + ip, ic]
+        return float(abs(b) * np.max(np.abs(self.levels)))
 
     def reset(self):
         """Forget the warm start, the rounding memory and the balancer's mode (see

@@ -10,10 +10,13 @@ same online gain/offset correction, reference lean and hand-over rule as the pul
 Cost of a sequence (every stage cost is non-negative)::
 
     sum_k  violation_weight * band_excess(z_k)^2 + lean_weight * dt * (phi_k - phi_ref)^2
-           + cart_weight * dt * x_k^2 + push_weight * [u_k != 0]   +   mode_weight * s_N^2
+           + dt * z_k' Q z_k + centre_weight * dt * p_k^2 + push_weight * [u_k != 0]
+    + mode_weight * s_N^2 + z_N' P z_N + centre_weight * (p_N, v0_N)' P_c (p_N, v0_N)
 
 with the band excess of the pole angle, pole rate and cart position as in :class:`PulseBalancer`
-(the cart's excess weighted ``track_weight`` times) and ``s`` the unstable mode.
+(the cart's excess weighted ``track_weight`` times), ``s`` the unstable mode, ``Q`` the
+diagonal ``state_weights`` (plus ``cart_weight`` on the cart), ``P`` its DARE value on the
+linearisation, and ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below).
 
 Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
 by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
@@ -23,6 +26,16 @@ incumbent's is pruned (the remaining costs are non-negative, so it cannot win). 
 accumulated cost plus the current unstable-mode term are kept (a beam); the plan is then not
 proven optimal and :attr:`proven` is False.  Otherwise the returned first level is that of an
 optimal sequence over all ``len(levels)^horizon``.
+
+The cart: pushes move the cart speed and the pole rate in a fixed ratio
+(``ratio = B_xdot / B_thetadot``), so ``v0 = x_dot - ratio * theta_dot`` and
+``p = x - ratio * phi`` are not moved by the pushes (to first order in dt); they obey
+``p' = v0``, ``v0' = kappa * phi``: a double integrator driven by the pole's lean.  Its LQR
+value (lean as the input, closed-loop frequency ``centre_frequency``), times ``centre_weight``,
+is added to the terminal cost and ``centre_weight * dt * p^2`` to the stage cost: over a horizon
+of well under a second this is what makes the plan lean the pole so that the cart drifts back
+to the centre (the DARE value of the full linearisation, computed for a continuous force,
+does not: it expects the cart to be returned by force).
 
 The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
 rate change over one push of the largest force from rest at the upright: a band narrower than
@@ -65,8 +78,16 @@ class SequenceBalancer(PulseBalancer):
         with ``input_weight`` (per N^2 s) they give the DARE value used as terminal cost.
     terminal_weight : float
         Factor on the DARE value at the horizon's end.
+    centre_weight : float
+        Weight of the cart's return to the centre (module docstring): the LQR value of the
+        slow subsystem ``(p, v0)`` is added to the terminal cost, its state cost ``p^2`` to
+        the stage cost.
+    centre_frequency : float
+        Closed-loop natural frequency (rad/s) of that LQR design, i.e. how fast the cart is
+        to return (a slower return needs a smaller lean).
     lean_weight : float
-        Weight of the lean-reference term (small by default: the DARE value returns the cart).
+        Weight of the lean-reference term (small by default: the centring value returns the
+        cart).
     **options
         ``angle_band``, ``region``, ``max_lean``, ``cart_frequency``, ``cart_damping``,
         ``lean_weight``, ``push_weight``, ``mode_weight``, ``track_margin``, ``track_weight``,
@@ -89,7 +110,8 @@ class SequenceBalancer(PulseBalancer):
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=16, max_frontier=500, rate_band=None, violation_weight=1e4,
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
-                 terminal_weight=1.0, lean_weight=1e-6, **options):
+                 terminal_weight=1.0, lean_weight=1e-6, centre_weight=10.0, centre_frequency=0.5,
+                 **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
@@ -134,6 +156,20 @@ class SequenceBalancer(PulseBalancer):
         self.Q = Q * self.dt
         self.P = terminal_weight * solve_discrete_are(self.A, self.B[:, None], self.Q,
                                                       np.array([[input_weight * self.dt]]))
+        # the slow subsystem: p = x - ratio * phi, v0 = x_dot - ratio * theta_dot obey
+        # p' = v0, v0' = kappa * phi (pushes do not move them); its LQR value with the lean as
+        # input, closed-loop frequency centre_frequency, is a terminal cost that returns the cart
+        self.centre_weight = check_real("centre_weight", centre_weight, nonnegative=True)
+        wc = check_real("centre_frequency", centre_frequency, positive=True)
+        from scipy.linalg import solve_continuous_are
+        Pc = solve_continuous_are(np.array([[0.0, 1.0], [0.0, 0.0]]),
+                                  np.array([[0.0], [self.kappa]]), np.diag([1.0, 0.0]),
+                                  np.array([[self.kappa ** 2 / wc ** 4]]))
+        T = np.zeros((2, 4))
+        T[0, self.ic], T[0, self.ip] = 1.0, -self.ratio
+        T[1, 2 + self.ic], T[1, 2 + self.ip] = 1.0, -self.ratio
+        self.P = self.P + self.centre_weight * T.T @ Pc @ T
+        self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
 
     def reset(self):
         """Forget the balancer's mode and its last plan (call between episodes)."""
