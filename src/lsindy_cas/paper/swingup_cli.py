@@ -27,7 +27,7 @@ def add_swingup_arguments(parser):
     parser.add_argument("--rounding", default=None,
                         help="how the applied force is chosen: lookahead (default), sur or nearest")
     parser.add_argument("--balance", choices=("on", "off"), default=None,
-                        help="pulse balancer near the upright (default on)")
+                        help="balancer near the upright (default on: pulse balancer, or the sequence balancer when one push changes the identified pole rate by >= 0.6 rad/s)")
     parser.add_argument("--inexact-tol", type=float, default=None, metavar="TOL",
                         help="largest constraint violation of an iteration-capped solve that is "
                              "still applied (default 1e-6)")
