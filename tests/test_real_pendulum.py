@@ -4,6 +4,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 DATA = EXAMPLES / "data" / "real_pendulum"
@@ -29,6 +30,7 @@ def test_shipped_data_and_licence():
     np.testing.assert_allclose(coef, [0.5, -64.219, 0.0672 / 2], rtol=1e-3)
 
 
+@pytest.mark.slow    # ~50 s under load: engine fit and refinement on 4 x 2 s
 def test_quick_run_writes_table_and_figure(tmp_path, capsys):
     ex = _example()
     results = ex.main(out_dir=tmp_path, quick=True, verbose=True)

@@ -107,6 +107,7 @@ def _sim_error(model, clean):
                      for tr in clean])
 
 
+@pytest.mark.slow    # ~16 s: fit + refinement
 def test_model_refine_lowers_the_simulation_error_and_keeps_the_support(swings):
     clean, noisy = swings
     model = _fit(noisy)
@@ -139,6 +140,7 @@ def test_model_refine_lowers_the_simulation_error_and_keeps_the_support(swings):
     assert "refined by prediction error" in text and "standard error" not in text
 
 
+@pytest.mark.slow    # ~30 s: two CLI runs in subprocesses
 def test_cli_refine(tmp_path, swings):
     import json
     import subprocess
