@@ -54,3 +54,17 @@ def test_quick_run_writes_table_and_figure(tmp_path, capsys):
     for piece in results["rms"].values():
         assert piece["ours"][0] < 5e-3
         assert piece["ours"][2] <= piece["ours_before_refinement"][2]
+
+
+def test_start_robustness_counts_ties_as_ours():
+    # the authors' model against itself: equal errors at every start, so "ours <= authors'" at all
+    from lsindy_cas.mechanics.parametric import ParametricDynamics
+    ex = _example()
+    _, vals = ex.load(quick=True)
+    terms, diss, coef = ex.authors_model()
+    ode = ParametricDynamics(["theta"], terms, diss).bind(coef)
+    out = ex.start_robustness(ode, ode, vals, 3)
+    assert set(out) == {"val1 1 s", "val2 1 s"}       # quick pieces are 3 s: no 3 s horizon
+    for row in out.values():
+        assert row["ours_wins"] == 1.0 and row["mean_ours"] == row["mean_authors"]
+    assert out["val1 1 s"]["starts"] == 3
