@@ -118,7 +118,8 @@ def main(out_dir=None, quick=False, verbose=True, starts=0):
         "normalisation": f"relative energy: coefficient of {model.normalised_by_} in H = 1",
         "candidates": {"energy": ENERGY, "dissipation": DISSIPATION},
         "energy_balance": balance,
-        "refined": {"hamiltonian_terms": model.terms(), "lagrangian_terms": model.terms("lagrangian"),
+        "refined": {"hamiltonian_terms": model.terms(),
+                    "lagrangian_terms": model.terms("lagrangian"),
                     "rayleigh_terms": model.terms("rayleigh"), "applied": info["applied"],
                     "status": info["status"], "iterations": info["iterations"],
                     "train_rms_before": info["rms_before"], "train_rms_after": info["rms_after"]},
@@ -154,12 +155,14 @@ def _print(results, model):
     print("\nRMS angle error (rad), each validation piece predicted from its first sample")
     print(f"{'piece':<6}{'model':<22}{'1 s':>10}{'3 s':>10}{'end':>10}")
     for piece, row in results["rms"].items():
-        for who, label in (("ours", "ours (refined)"), ("ours_before_refinement", "ours (balance only)"),
+        for who, label in (("ours", "ours (refined)"),
+                           ("ours_before_refinement", "ours (balance only)"),
                            ("authors", "authors' grey box")):
             print(f"{piece:<6}{label:<22}" + "".join(f"{v:>10.2e}" for v in row[who]))
     for key, row in results.get("start_robustness", {}).items():
         print(f"{key} from each of the first {row['starts']} samples: ours <= authors' in "
-              f"{row['ours_wins']:.0%}; mean RMS {row['mean_ours']:.2e} vs {row['mean_authors']:.2e}")
+              f"{row['ours_wins']:.0%}; mean RMS {row['mean_ours']:.2e} vs "
+              f"{row['mean_authors']:.2e}")
     print(f"\nseconds: {', '.join(f'{k} {v:.1f}' for k, v in results['seconds'].items())}")
 
 

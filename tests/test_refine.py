@@ -96,7 +96,8 @@ def swings():
 
 def _fit(noisy):
     from lsindy_cas import LagrangianSINDy, Library
-    lib = Library(["theta"], ["theta_dot**2", "cos(theta)", "sin(theta)", "theta_dot**2*cos(theta)"])
+    lib = Library(["theta"], ["theta_dot**2", "cos(theta)", "sin(theta)",
+                              "theta_dot**2*cos(theta)"])
     return LagrangianSINDy(lib, dissipation=["theta_dot**2", "Abs(theta_dot)"]).fit(noisy,
                                                                                     passive=True)
 
@@ -138,6 +139,9 @@ def test_model_refine_lowers_the_simulation_error_and_keeps_the_support(swings):
     np.testing.assert_allclose(np.asarray(model.ode()(x, [0.0])).ravel(), [x[1], want], rtol=1e-10)
     text = str(model)
     assert "refined by prediction error" in text and "standard error" not in text
+    assert model.to_dict()["refinement"]["applied"]
+    model.fit(noisy, passive=True)          # fitted again: the refinement no longer describes it
+    assert "refined" not in str(model) and "refinement" not in model.to_dict()
 
 
 @pytest.mark.slow    # ~30 s: two CLI runs in subprocesses
@@ -149,15 +153,16 @@ def test_cli_refine(tmp_path, swings):
     _, noisy = swings
     files = [tr.save(tmp_path / f"swing{i}.csv") for i, tr in enumerate(noisy)]
     out = tmp_path / "model.json"
-    args = [sys.executable, "-m", "lsindy_cas.cli", "identify", *map(str, files), "--coords", "theta",
-            "--features", "cos(theta),theta_dot", "--degree", "2", "--passive",
-            "--dissipation", "theta_dot**2,Abs(theta_dot)"]
-    r = subprocess.run(args + ["--refine", "--json", str(out)], capture_output=True, text=True,
-                       timeout=300)
+    cli = [sys.executable, "-m", "lsindy_cas.cli", "identify"]
+    options = ["--coords", "theta", "--features", "cos(theta),theta_dot", "--degree", "2",
+               "--passive", "--dissipation", "theta_dot**2,Abs(theta_dot)"]
+    r = subprocess.run(cli + [str(f) for f in files] + options + ["--refine", "--json", str(out)],
+                       capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert "coefficients refined by prediction error over 3 run(s)" in r.stdout
     d = json.loads(out.read_text())
-    assert d["refinement"]["applied"] and d["refinement"]["rms_after"] < d["refinement"]["rms_before"]
+    info = d["refinement"]
+    assert info["applied"] and info["rms_after"] < info["rms_before"]
     assert set(d["hamiltonian_terms"]) == {"theta_dot**2", "cos(theta)"}
     assert d["hamiltonian_terms"]["cos(theta)"] == pytest.approx(-19.62, rel=5e-4)
     assert "hamiltonian_std" not in d          # the balance's errors do not apply to these values
@@ -166,6 +171,6 @@ def test_cli_refine(tmp_path, swings):
     # bad input, before any fitting: unevenly sampled runs
     t = np.r_[0.0, np.cumsum(np.full(50, 0.02) * (1 + 0.3 * (np.arange(50) % 2)))]
     Trajectory(t, np.cos(t)[:, None], None, ["theta"]).save(tmp_path / "uneven.csv")
-    r = subprocess.run(args[:4] + [str(tmp_path / "uneven.csv")] + args[6:] + ["--refine"],
+    r = subprocess.run(cli + [str(tmp_path / "uneven.csv")] + options + ["--refine"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and "not uniformly sampled" in r.stderr and r.stderr.count("\n") == 1

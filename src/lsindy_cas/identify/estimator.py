@@ -318,8 +318,8 @@ class LagrangianSINDy:
         # 9. the model and its report
         record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef,
                            smoothing, trap, hold)
-        self.smoothing_, self.trap_, self.selection_, self.search_ = smoothing, trap, sel, sel.search
-        self.n_terms_, self.passive_, self.form_ = sel.k, bal.passive, bal.form
+        self.smoothing_, self.trap_, self.selection_, self.n_terms_ = smoothing, trap, sel, sel.k
+        self.search_, self.passive_, self.form_ = sel.search, bal.passive, bal.form
         self.actuated_ = [c for c in coords if any(c in tr.actuated for tr in
                                                    trajectories + (scale_list or []))]
         kinds = {tr.velocities for tr in trajectories + (scale_list or [])}

@@ -54,7 +54,8 @@ def model_to_dict(model) -> dict:
         out["rayleigh"] = str(model.rayleigh_)
         out["rayleigh_terms"] = model.terms("rayleigh")
         out["dissipation_library"] = model._diss_lib.to_dict()
-    if getattr(model, "refinement_", None) is not None:    # prediction-error refinement record
+    from .refine import current_refinement
+    if current_refinement(model) is not None:      # prediction-error refinement record
         out["refinement"] = model.refinement_
     res = getattr(model, "search_", None)
     if res is not None:            # how the support was found, and whether it is proven best

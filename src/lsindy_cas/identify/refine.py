@@ -33,7 +33,8 @@ import sympy as sp
 from .._validate import check_int, check_real
 from ..mechanics.parametric import DEFAULT_EPS, ParametricDynamics
 
-__all__ = ["RefineResult", "refine", "refine_model", "check_uniform", "refinement_text", "rk4_predictor", "predict"]
+__all__ = ["RefineResult", "refine", "refine_model", "check_uniform", "current_refinement",
+           "refinement_text", "rk4_predictor", "predict"]
 
 
 @dataclass
@@ -382,15 +383,26 @@ def refine_model(model, trajectories, interval: float = 0.25, steps: int = 2,
         "energy_balance_lagrangian": dict(zip(res.names[:len(S)], p0[:len(S)].tolist())),
         "energy_balance_rayleigh": dict(zip(res.names[len(S):], p0[len(S):].tolist())),
     }
-    if not applied:
-        return model
-    coef = np.zeros(len(lib))
-    coef[S] = res.coef[:len(S)] / to_l
-    rho[D] = res.coef[len(S):]
-    model._set_coefficients(coef, rayleigh=rho if dlib is not None else None)
-    # the jackknife errors belong to the energy-balance estimate, not to these coefficients
-    model.coef_std_ = model.lagrangian_coef_std_ = model.std_method_ = None
+    if applied:
+        coef = np.zeros(len(lib))
+        coef[S] = res.coef[:len(S)] / to_l
+        rho[D] = res.coef[len(S):]
+        model._set_coefficients(coef, rayleigh=rho if dlib is not None else None)
+        # the jackknife errors belong to the energy-balance estimate, not to these coefficients
+        model.coef_std_ = model.lagrangian_coef_std_ = model.std_method_ = None
+    model.refinement_.update(hamiltonian_terms=model.terms(), rayleigh_terms=model.terms("rayleigh"))
     return model
+
+
+def current_refinement(model):
+    """``model.refinement_`` if it describes the model's present coefficients, else None (a model
+    fitted again after ``refine`` no longer carries the refined coefficients)."""
+    info = getattr(model, "refinement_", None)
+    if not isinstance(info, dict) or not hasattr(model, "coef_"):
+        return None
+    same = (info.get("hamiltonian_terms") == model.terms()
+            and info.get("rayleigh_terms", {}) == model.terms("rayleigh"))
+    return info if same else None
 
 
 def refinement_text(info: dict) -> str:
