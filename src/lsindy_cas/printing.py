@@ -349,4 +349,7 @@ def model_text(self) -> str:
     lines.append("equations of motion:")
     lines += [f"  {_fmt(e.lhs, MAX_DIGITS)} = {_fmt(e.rhs, MAX_DIGITS)}" for e in eoms]
     table = coefficient_table(self)
+    from .identify.refine import current_refinement, refinement_text
+    if current_refinement(self) is not None:
+        table = refinement_text(self.refinement_) + ("\n" + table if table else "")
     return "\n".join(lines + ([table] if table else []))

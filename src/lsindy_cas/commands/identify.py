@@ -55,6 +55,9 @@ def run(args) -> int:
             raise ValueError("--dissipation needs the all-windows integral form: drop --window")
     trajs = load_trajectories(args.trajectories, coords)
     scale = load_trajectories(args.scale, coords) if args.scale else None
+    if args.refine:
+        from ..identify.refine import check_uniform
+        check_uniform(trajs, "--refine")
     if args.form == "derivative" and any(tr.qdd is None for tr in trajs):
         raise ValueError("--form derivative needs accelerations (<q>_ddot columns) in every "
                          "trajectory file; use --form integral")
@@ -75,6 +78,8 @@ def run(args) -> int:
                   client=client)
     if client is not None:
         client.close()
+    if args.refine:
+        model.refine(trajs)         # the printout and --json then show the refined model
     res = model.search_
     if not res.proven:              # time limit or Ctrl-C in the branch and bound
         print(f"search not proven: best admissible support found in {res.seconds:.1f} s "
@@ -116,6 +121,10 @@ def add_to(sub) -> None:
                        help='candidate terms of the Rayleigh dissipation function R over <q>_dot, '
                        'e.g. "theta_dot**2,Abs(x_dot)" (friction forces -dR/dq_dot; terms the '
                        "data do not support come out zero)")
+    ident.add_argument("--refine", action="store_true",
+                       help="then refine the coefficients of H and R on the chosen support by "
+                       "prediction error over the training runs (multiple shooting; evenly "
+                       "sampled runs; the normalisation kept)")
     ident.add_argument("--form", choices=["auto", "derivative", "integral"], default="auto",
                        help="energy-balance form (auto: derivative if files carry <q>_ddot)")
     ident.add_argument("--smoothing", choices=["auto", "none"], default="auto",

@@ -319,12 +319,8 @@ class LagrangianSINDy:
         # 9. the model and its report
         record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef,
                            smoothing, trap, hold)
-        self.smoothing_, self.trap_ = smoothing, trap
-        self.selection_ = sel
-        self.search_ = sel.search
-        self.n_terms_ = sel.k
-        self.passive_ = bal.passive
-        self.form_ = bal.form
+        self.smoothing_, self.trap_, self.selection_, self.n_terms_ = smoothing, trap, sel, sel.k
+        self.search_, self.passive_, self.form_ = sel.search, bal.passive, bal.form
         self.actuated_ = [c for c in coords if any(c in tr.actuated for tr in
                                                    trajectories + (scale_list or []))]
         kinds = {tr.velocities for tr in trajectories + (scale_list or [])}
@@ -372,6 +368,11 @@ class LagrangianSINDy:
             coef = _corrected(bal_w, grads, w, state_var, support, scale_system)
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
         return coef, bal_w, sel_w, adm
+
+    def refine(self, trajectories, **options) -> "LagrangianSINDy":
+        """Refine the coefficients in place by prediction error (:func:`.refine.refine_model`)."""
+        from .refine import refine_model
+        return refine_model(self, trajectories, **options)
 
     def _set_coefficients(self, coef, X=None, rayleigh=None):
         lib = self.library

@@ -54,6 +54,9 @@ def model_to_dict(model) -> dict:
         out["rayleigh"] = str(model.rayleigh_)
         out["rayleigh_terms"] = model.terms("rayleigh")
         out["dissipation_library"] = model._diss_lib.to_dict()
+    from .refine import current_refinement
+    if current_refinement(model) is not None:      # prediction-error refinement record
+        out["refinement"] = model.refinement_
     res = getattr(model, "search_", None)
     if res is not None:            # how the support was found, and whether it is proven best
         out["search"] = {"method": res.method, "proven": bool(res.proven), "gap": float(res.gap),
@@ -100,6 +103,8 @@ def load_model(cls, path):
     if isinstance(status, dict) and status.get("status") in ("ok", "undetermined"):
         model.status_ = status["status"]            # files before the status have none
         model.status_reasons_ = [str(r) for r in status.get("reasons", [])]
+    if isinstance(d.get("refinement"), dict):
+        model.refinement_ = d["refinement"]
     model.energy_scale_ = d.get("energy_scale", "absolute")
     model.normalised_by_ = d.get("normalised_by")
     rho = None

@@ -33,7 +33,8 @@ import sympy as sp
 from .._validate import check_int, check_real
 from ..mechanics.parametric import DEFAULT_EPS, ParametricDynamics
 
-__all__ = ["RefineResult", "refine", "rk4_predictor", "predict"]
+__all__ = ["RefineResult", "refine", "refine_model", "check_uniform", "current_refinement",
+           "refinement_text", "rk4_predictor", "predict"]
 
 
 @dataclass
@@ -51,8 +52,9 @@ class RefineResult:
     x0 : list of arrays (2n,)
         The fitted initial state of each training run.
     rms_initial, rms : float
-        RMS position error (coordinate units) of predicting every training run from its first
-        measured sample, with the starting and with the refined coefficients.
+        RMS position error (coordinate units) of the free simulation of every training run, with
+        the starting and with the refined coefficients: from the first measured sample, or
+        (``free_start``) from the initial states fitted for each set of coefficients.
     status : str
         IPOPT's return status; ``success`` whether it converged.
     """
@@ -141,6 +143,16 @@ def _check_admissible(dyn: ParametricDynamics, p, trajectories):
     if power.min() < -1e-9 * max(1.0, np.abs(power).max()):
         raise RuntimeError(f"refined model refused: its friction creates energy on the data "
                            f"(dissipated power down to {power.min():.3g})")
+
+
+def _starts(w, dyn, trajectories, interval) -> list:
+    """Each run's initial state (2n,) in the NLP vector ``w``."""
+    n, out, offset = dyn.coords.n, [], dyn.n_params
+    for tr in trajectories:
+        K = max(1, int(round(interval / (tr.t[1] - tr.t[0]))))
+        out.append(w[offset:offset + 2 * n])
+        offset += 2 * n * (len(range(0, tr.n_samples - 1, K)) + 1)
+    return out
 
 
 def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fixed=(),
@@ -259,28 +271,148 @@ def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fix
             "ipopt.max_iter": max_iter, "ipopt.tol": 1e-12, "ipopt.acceptable_tol": 1e-10}
     solver = ca.nlpsol("refine", "ipopt", nlp, opts)
     start = time.perf_counter()
-    sol = solver(x0=np.concatenate(w0), lbx=np.concatenate(wlb), ubx=np.concatenate(wub),
-                 lbg=0, ubg=0)
+    w0, wlb, wub = np.concatenate(w0), np.concatenate(wlb), np.concatenate(wub)
+    starts0 = None
+    if free_start:
+        # the starting coefficients with their own best initial states: the fair "before" of the
+        # reported error, and a consistent warm start (states on one simulation per run)
+        pre = solver(x0=w0, lbx=np.r_[p0, wlb[dyn.n_params:]], ubx=np.r_[p0, wub[dyn.n_params:]],
+                     lbg=0, ubg=0)
+        w0 = np.asarray(pre["x"]).ravel()
+        starts0 = _starts(w0, dyn, trajectories, interval)
+    sol = solver(x0=w0, lbx=wlb, ubx=wub, lbg=0, ubg=0)
     seconds = time.perf_counter() - start
     stats = solver.stats()
     wopt = np.asarray(sol["x"]).ravel()
     coef = np.clip(wopt[:dyn.n_params], lb, ub)    # IPOPT may step outside a bound by its tolerance
-    x0s, offset = [], dyn.n_params
-    for tr in trajectories:
-        N = tr.n_samples
-        K = max(1, int(round(interval / (tr.t[1] - tr.t[0]))))
-        m = len(range(0, N - 1, K)) + 1
-        x0s.append(wopt[offset:offset + 2 * n])
-        offset += 2 * n * m
+    x0s = _starts(wopt, dyn, trajectories, interval)
     _check_admissible(dyn, coef, trajectories)
 
-    def rms(c):
-        err = [predict(dyn, c, tr.X[0], tr.t, tr.Q, steps)[:, :n] - tr.q for tr in trajectories]
+    def rms(c, starts):
+        err = [predict(dyn, c, x0, tr.t, tr.Q, steps)[:, :n] - tr.q
+               for x0, tr in zip(starts, trajectories)]
         return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+    first = [tr.X[0] for tr in trajectories]
     return RefineResult(
         names=dyn.names, n_lagrangian=dyn.n_lagrangian, coef=coef, initial=p0,
-        fixed=[dyn.names[j] for j in fixed_idx], x0=x0s, rms_initial=rms(p0), rms=rms(coef),
+        fixed=[dyn.names[j] for j in fixed_idx], x0=x0s,
+        rms_initial=rms(p0, starts0 or first), rms=rms(coef, x0s if free_start else first),
         status=stats["return_status"], success=bool(stats["success"]),
         iterations=int(stats["iter_count"]), seconds=seconds, n_intervals=n_intervals,
         report={"cost": float(sol["f"]), "interval": interval, "steps": steps,
                 "rate_weight": rate_weight, "eps": eps, "n_samples": n_samples})
+
+
+def check_uniform(trajectories, what: str = "trajectories") -> None:
+    """Refinement integrates over the sampling grid: refuse a run whose time steps differ."""
+    for r, tr in enumerate(trajectories):
+        dt = np.diff(tr.t)
+        if dt.size and not np.allclose(dt, dt[0], rtol=1e-6, atol=0):
+            raise ValueError(f"{what}: run {r} ({tr.source}) is not uniformly sampled; prediction-"
+                             "error refinement needs evenly spaced samples")
+
+
+def refine_model(model, trajectories, interval: float = 0.25, steps: int = 2,
+                 rate_weight: float = 0.1, free_start: bool = True, max_iter: int = 200):
+    """Refine a fitted ``LagrangianSINDy``'s coefficients in place by prediction error.
+
+    The support (energy terms and dissipation terms) is the one the energy balance chose; the
+    coefficients of L and R are refined by :func:`refine` over ``trajectories``, started from the
+    energy-balance estimate.  The normalisation is kept: a relative energy keeps its
+    ``normalised_by_`` coefficient; free motion with an absolute energy (scale record) keeps the
+    first kinetic term's.  H follows from L term by term (θ ↦ (d − 1) θ, d = degree in the
+    velocities).  The model then shows the refined H, L, R and ODE; its energy-balance standard
+    errors no longer apply and are removed; ``refinement_`` records what was done and
+    ``refine_result_`` holds the :class:`RefineResult`.  If IPOPT does not converge or the refined
+    coefficients predict worse, the model is left unchanged and ``refinement_["applied"]`` is False.
+
+    Parameters
+    ----------
+    model : LagrangianSINDy
+        A fitted model (energy terms homogeneous in the velocities).
+    trajectories : Trajectory or list of Trajectory
+        The training runs, evenly sampled; forces are held over each sample.
+    interval, steps, rate_weight, max_iter
+        As in :func:`refine`.
+    free_start : bool
+        True (default): each run's initial state is fitted with the coefficients (a noisy first
+        sample would otherwise bias them), and the error reported before and after is that of
+        each set of coefficients from its own fitted initial states.  False: each run is
+        predicted from its first measured sample.
+
+    Returns
+    -------
+    model
+    """
+    from .steps import _check_trajectories
+    model._check_fitted()
+    lib = model.library
+    runs = _check_trajectories(trajectories, lib.coords.names)
+    check_uniform(runs)
+    S = [int(j) for j in np.flatnonzero(model.coef_)]
+    degrees = [lib.velocity_degree(j) for j in S]
+    bad = [lib.names[j] for j, d in zip(S, degrees) if d is None or d == 1]
+    if bad:
+        raise ValueError(f"refinement needs energy terms homogeneous of degree 0 or 2 in the "
+                         f"velocities; {', '.join(bad)} is not")
+    to_l = np.array([1.0 / (d - 1) for d in degrees])        # ξ_L = ξ_H / (d − 1) (Legendre)
+    dlib = getattr(model, "_diss_lib", None)
+    rho = np.asarray(getattr(model, "rayleigh_coef_", np.zeros(0)), float).copy()
+    D = [int(j) for j in np.flatnonzero(rho)]
+    fixed = ()
+    if getattr(model, "energy_scale_", "absolute") == "relative":
+        fixed = (lib.exprs[lib.index(model.normalised_by_)],)
+    elif all(not np.any(tr.Q) for tr in runs):
+        kinetic = [j for j, d in zip(S, degrees) if d == 2]
+        if not kinetic:
+            raise ValueError("free motion: the energy has no kinetic term to keep its scale by")
+        fixed = (lib.exprs[kinetic[0]],)
+    p0 = np.r_[model.coef_[S] * to_l, rho[D]]
+    res = refine(lib.coords, [lib.exprs[j] for j in S], p0, runs,
+                 [dlib.exprs[j] for j in D] if D else (), fixed=fixed, interval=interval,
+                 steps=steps, rate_weight=rate_weight, free_start=free_start, max_iter=max_iter)
+    applied = res.success and res.rms <= res.rms_initial
+    model.refine_result_ = res
+    model.refinement_ = {
+        "applied": bool(applied), "method": "prediction error, multiple shooting (IPOPT)",
+        "status": res.status, "iterations": res.iterations, "seconds": round(res.seconds, 3),
+        "runs": len(runs), "fixed": res.fixed, "free_start": bool(free_start),
+        "rms_before": res.rms_initial, "rms_after": res.rms if applied else res.rms_initial,
+        "rms_refined": res.rms, "interval": res.report["interval"], "rk4_steps": steps,
+        "rate_weight": rate_weight,
+        "energy_balance_lagrangian": dict(zip(res.names[:len(S)], p0[:len(S)].tolist())),
+        "energy_balance_rayleigh": dict(zip(res.names[len(S):], p0[len(S):].tolist())),
+    }
+    if applied:
+        coef = np.zeros(len(lib))
+        coef[S] = res.coef[:len(S)] / to_l
+        rho[D] = res.coef[len(S):]
+        model._set_coefficients(coef, rayleigh=rho if dlib is not None else None)
+        # the jackknife errors belong to the energy-balance estimate, not to these coefficients
+        model.coef_std_ = model.lagrangian_coef_std_ = model.std_method_ = None
+    model.refinement_.update(hamiltonian_terms=model.terms(), rayleigh_terms=model.terms("rayleigh"))
+    return model
+
+
+def current_refinement(model):
+    """``model.refinement_`` if it describes the model's present coefficients, else None (a model
+    fitted again after ``refine`` no longer carries the refined coefficients)."""
+    info = getattr(model, "refinement_", None)
+    if not isinstance(info, dict) or not hasattr(model, "coef_"):
+        return None
+    same = (info.get("hamiltonian_terms") == model.terms()
+            and info.get("rayleigh_terms", {}) == model.terms("rayleigh"))
+    return info if same else None
+
+
+def refinement_text(info: dict) -> str:
+    """One line on a model's refinement (``model.refinement_``) for the printout."""
+    before, after = info["rms_before"], info["rms_refined"]
+    drop = 100 * (1 - after / before) if before > 0 else 0.0
+    if not info["applied"]:
+        why = (f"IPOPT: {info['status']}" if info["status"] != "Solve_Succeeded"
+               else f"prediction error {before:.3g} -> {after:.3g} did not drop")
+        return f"refinement not applied ({why}): coefficients from the energy balance"
+    return (f"coefficients refined by prediction error over {info['runs']} run(s) "
+            f"({info['iterations']} IPOPT iterations, {info['seconds']:.1f} s): RMS position error "
+            f"{before:.3g} -> {after:.3g} ({drop:.1f} % lower)")
