@@ -447,5 +447,3 @@ class LagrangianSINDy:
         """Read a model written by ``save`` or ``lsindy identify --json``."""
         from .model_file import load_model
         return load_model(cls, path)
-
-
