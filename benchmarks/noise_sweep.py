@@ -105,13 +105,13 @@ def run_one(job):
         try:
             model = _fit(method, lib, setup, noisy)
             exact, err = compare(model.coef_, truth)
-            k = model.n_terms_
+            k, status, reasons = model.n_terms_, model.status_, model.status_reasons_
         except ValueError as exc:
-            exact, err, k = False, float("inf"), None
+            exact, err, k, status, reasons = False, float("inf"), None, "refused", [str(exc)]
             print(f"  {name}/{protocol}/σ={sigma:g}/seed {seed}/{method}: {exc}", file=sys.stderr)
         out.append({"system": name, "protocol": protocol, "sigma": sigma, "seed": seed,
                     "method": method, "exact_support": exact, "max_rel_error": err, "k": k,
-                    "k_true": setup.n_terms,
+                    "k_true": setup.n_terms, "status": status, "status_reasons": reasons,
                     "success": bool(exact and err <= TOL), "seconds": time.perf_counter() - t0})
     return out
 
@@ -134,6 +134,42 @@ def summarise(rows):
         s, e, n = table.get(key, (0, 0, 0))
         table[key] = (s + r["success"], e + r["exact_support"], n + 1)
     return table
+
+
+def status_counts(rows) -> dict:
+    """The fit status against the outcome, over the methods with a status (not "paper").
+
+    ``false_alarms``: successes (exact support, coefficients within TOL) with status
+    "undetermined"; ``silent_failures``: failures with status "ok"; "refused" fits (no model)
+    are neither.
+    """
+    rows = [r for r in rows if r["method"] != "paper" and r.get("status") is not None]
+    passing = [r for r in rows if r["success"]]
+    failing = [r for r in rows if not r["success"] and r["status"] != "refused"]
+    return {"passing": len(passing),
+            "false_alarms": sum(r["status"] != "ok" for r in passing),
+            "failing": len(failing),
+            "silent_failures": sum(r["status"] == "ok" for r in failing),
+            "refused": sum(r["status"] == "refused" for r in rows)}
+
+
+def status_lines(rows) -> list:
+    """Markdown lines: the status counts, then each false alarm and silent failure."""
+    c = status_counts(rows)
+    lines = ["", "Fit status (methods raw, ours, ours_k): "
+             f"{c['false_alarms']} of {c['passing']} passing fits are 'undetermined' (false "
+             f"alarms); {c['silent_failures']} of {c['failing']} failing fits are 'ok' (silent "
+             f"failures); {c['refused']} refused."]
+    for r in rows:
+        if r["method"] == "paper" or r.get("status") in (None, "refused"):
+            continue
+        if r["success"] == (r["status"] == "ok"):
+            continue
+        what = "false alarm" if r["success"] else "silent failure"
+        why = "; ".join(r.get("status_reasons") or [])[:140]
+        lines.append(f"- {what}: {r['system']}/{r['protocol']}/σ={r['sigma']:g}/seed {r['seed']}/"
+                     f"{r['method']} (error {r['max_rel_error']:.1e}) {why}")
+    return lines
 
 
 def markdown(rows, levels) -> str:
@@ -165,7 +201,7 @@ def markdown(rows, levels) -> str:
         if k[2] in ("raw", "ours"):
             cells = [f"{ks[(*k, s)][0]}/{ks[(*k, s)][1]}" if (*k, s) in ks else "" for s in levels]
             lines.append(f"| {k[0]} | {k[1]} | {k[2]} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+    return "\n".join(lines + status_lines(rows))
 
 
 def plot(rows, levels, path: Path):
@@ -245,7 +281,7 @@ def main(argv=None) -> int:
     (out / f"{args.name}.md").write_text(md + "\n")
     (out / f"{args.name}.json").write_text(json.dumps(
         {"levels": levels, "seeds": args.seeds, "tolerance": TOL, "seconds": time.perf_counter() - t0,
-         "rows": rows}, indent=1, default=float))
+         "status": status_counts(rows), "rows": rows}, indent=1, default=float))
     figures = Path(args.figures)
     figures.mkdir(parents=True, exist_ok=True)
     plot(rows, levels, figures / f"{args.name}.png")

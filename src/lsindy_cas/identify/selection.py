@@ -329,4 +329,7 @@ def _chi(bal, res, noise) -> float:
     if noise is None or bal.b is None:
         return float("nan")
     bb = float(bal.b @ bal.b)
-    return noise.chi(res.coef, res.score * bb, _CV_FLOOR * bb)
+    # the residual itself, not score·‖b‖²: the score comes from the normal equations, whose
+    # round-off (~1e-14 relative) would read as a misfit on clean data
+    r = bal.A @ res.coef - bal.b
+    return noise.chi(res.coef, float(r @ r), _CV_FLOOR * bb)

@@ -43,9 +43,10 @@ N_STARTS = 4         # stretches per run
 MAX_STRETCHES = 16
 # χ of correct models measured 0.2–1.7 (selection.CHI_OK = 2); models missing a term ≳ 40.
 CHI_BAD = 10.0
-# ... but only when the model leaves a visible part of the held-out work unexplained: on clean data
-# the noise estimate is ~0 and residuals of 1e-12 (smoothing, quadrature) read as χ ≫ 1.
-CHI_MIN_ERROR = 1e-8
+# No gate on the size of the held-out error any more (it was 1e-8): χ takes the residual directly
+# and expects the work's own quadrature error: clean data give χ ≲ 1 (the 18 actuated spherical
+# cells from files: max 0.44, was 636).
+CHI_MIN_ERROR = 0.0
 COND_BAD = 1e10
 
 

@@ -43,10 +43,15 @@ class NoiseModel:
         Σ_i w_i ∇Θ_iᵀ diag(s_i²) ∇Θ_i over the rows.
     beta : float
         Variance of the work rows' noise, summed (velocity noise integrated into W).
+    quadrature : float
+        The work rows' own discretisation error, squared and summed
+        (:attr:`~lsindy_cas.identify.balance.EnergyBalance.quadrature`): the floor of the residual
+        of a correct model on noise-free data.
     """
 
     N: np.ndarray
     beta: float
+    quadrature: float = 0.0
 
     def chi(self, coef: np.ndarray, rss: float, floor: float = 0.0) -> float:
         """Residual sum of squares in units of its expected noise: ≈ 1 when a model fits to within
@@ -54,10 +59,13 @@ class NoiseModel:
 
         ``floor`` is the residual that is numerically zero (round-off and the accuracy of the data's
         own integration), added to both sides: on clean data the estimated noise is ~0 and an exact
-        model's residual is at that floor, so χ ≈ 1 there instead of 0/0 or 1e11.
+        model's residual is at that floor, so χ ≈ 1 there instead of 0/0 or 1e11.  The work
+        integral's estimated quadrature error (``quadrature``) is expected too: on clean data it,
+        not the noise, is what a correct model leaves.
         """
         S = np.flatnonzero(coef)
-        expected = float(coef[S] @ self.N[np.ix_(S, S)] @ coef[S]) + self.beta + floor
+        expected = (float(coef[S] @ self.N[np.ix_(S, S)] @ coef[S]) + self.beta + self.quadrature
+                    + floor)
         return (rss + floor) / expected if expected > 0 else np.inf
 
 
@@ -92,7 +100,7 @@ def noise_model(bal: EnergyBalance, state_var: np.ndarray, smoothed) -> NoiseMod
         v = (tr.Q[:-1] ** 2 @ sm.noise[ncoord:] ** 2) * np.diff(tr.t) ** 2
         m = n - np.arange(n - 1) - 1
         beta += wg * float(v @ (m - m ** 2 / n))
-    return NoiseModel(N, beta)
+    return NoiseModel(N, beta, float(bal.quadrature))
 
 
 def _increment_work_noise(Q: np.ndarray, sigma_q: np.ndarray) -> float:
