@@ -27,13 +27,14 @@ def _brute(search: _Search, S):
     return np.sum((An @ x - search.b) ** 2) / search.bb
 
 
+@pytest.mark.parametrize("screen", [False, True])
 @pytest.mark.parametrize("passive", [False, True])
 @pytest.mark.parametrize("seed", range(4))
-def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed):
+def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed, screen):
     rng = np.random.default_rng(seed)
     A, b, D = _problem(rng, 30, 9, passive)
     k, forced = 4, [int(rng.integers(9))] if seed % 2 else []
-    s = _Search(A, b, k, forced, None, D, None, 0.0, 5)
+    s = _Search(A, b, k, forced, None, D, None, 0.0, 5).start(screen)
     order = s.order
     # expand the root and one child, and check each child's bound against all of its leaves
     nodes = s.children(_Node((), 0.0, 1.0))

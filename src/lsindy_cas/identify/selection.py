@@ -49,7 +49,7 @@ import numpy as np
 
 from .balance import EnergyBalance
 from .fitting import null_vector
-from .bnb import branch_and_bound
+from .bnb import branch_and_bound, structure_of
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 
@@ -211,7 +211,8 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
         res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
     elif beam:                                           # fixed k, or no smaller model to extend
         res = branch_and_bound(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
-                               scale_system=scale_system, time_limit=time_limit, progress=progress)
+                               scale_system=scale_system, time_limit=time_limit, progress=progress,
+                               structure=_local_structure(admissible, p, cols))
     else:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress)
@@ -224,6 +225,17 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     if res.supports is not None:
         res.supports = cols.keep[res.supports]
     return res, beam
+
+
+def _local_structure(admissible, p, cols):
+    """:func:`~lsindy_cas.identify.bnb.structure_of` in the searched columns' indices (or None)."""
+    st = structure_of(admissible, p)
+    if st is None:
+        return None
+    banned = [cols.pos[j] for j in st[0] if j in cols.pos]
+    required = [np.array([cols.pos[int(j)] for j in r if int(j) in cols.pos], dtype=np.int64)
+                for r in st[1]]
+    return banned, required
 
 
 def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_report=10,
