@@ -419,7 +419,8 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         why = "; ".join(sorted({c.reason for c in s.candidates if c.reason}))
         raise ValueError(f"no physically admissible {k}-term model "
                          + ("among all supports" if proven else f"found in {seconds:.1f} s")
-                         + (f" (reasons: {why})" if why else ""))
+                         + f" ({s.nodes:,} nodes, {s.n_leaves:,} supports scored"
+                         + (f"; reasons: {why})" if why else ")"))
     s._trim_pool()
     sup, sc = s.pool_S[0], s.pool_s[0]
     w = s.winner
