@@ -24,6 +24,13 @@ becomes the incumbent only when it passes them all.  A subtree is pruned when it
 the incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the resolution of a Gram-based
 score): no support in it can beat the incumbent by more than round-off.
 
+Before any bound, the admissibility rules prune exactly (:func:`structure_of`): terms no energy has
+are left out, and a subtree whose terms miss every term with ∂²θ/∂q̇_i² ≠ 0 for some coordinate i
+(no positive-definite kinetic part) is dropped.  By default two trees are searched in turn, in the
+library order and the screening order, sharing the incumbent (the first exhausted proves it).
+Candidates are fitted on the triangular factor R of A = QR (p rows instead of m); the winner is
+refitted on A, as the exhaustive search fits it.
+
 Certificate: ``gap`` = incumbent − (smallest bound left unexplored or pruned), clipped at 0; the
 search is *proven* when the tree was exhausted (then gap ≤ tol).  A time limit or Ctrl-C stops the
 search with the best admissible support found so far and its gap, marked as not proven.
@@ -102,12 +109,10 @@ class _Search:
         # candidates are fitted on the triangular factor of A (same least-squares problem, same
         # singular values; p rows instead of m): A = Q R, ‖A_S ξ − b‖² = ‖R_S ξ − Qᵀb‖² + const
         self.Af, self.bf = A, b
-        if A.shape[0] > 2 * A.shape[1]:
-            if b is None:
-                self.Af = np.linalg.qr(A, mode="r")
-            else:
-                Q, self.Af = np.linalg.qr(A)
-                self.bf = Q.T @ b
+        if A.shape[0] > 2 * A.shape[1]:      # R of [A b] holds R and Qᵀb (Q never formed)
+            p = A.shape[1]
+            R = np.linalg.qr(A if b is None else np.column_stack([A, b]), mode="r")
+            self.Af, self.bf = R[:p, :p], (None if b is None else R[:p, p])
         self.forced = [int(j) for j in forced]
         self.admissible, self.scale_system, self.tol = admissible, scale_system, tol
         self.n_report = n_report
