@@ -135,7 +135,7 @@ class _Search:
         self.r = k - len(self.forced)
         self.incumbent, self.winner, self.null_dim = np.inf, None, 0
         self.candidates, self.n_reducible, self.n_examined = [], 0, 0
-        self.pool_S, self.pool_s = [], []
+        self.pool_S, self.pool_s, self.pool_n = [], [], 0
         self.n_leaves = self.n_degenerate = self.nodes = 0
         self.lower_pruned = np.inf
         self.current = None
@@ -145,7 +145,7 @@ class _Search:
     def clone(self) -> "_Search":
         """A second tree on the same problem, sharing the examined supports and candidates."""
         other = copy.copy(self)
-        other.pool_S, other.pool_s, other.queue = [], [], []
+        other.pool_S, other.pool_s, other.pool_n, other.queue = [], [], 0, []
         other.n_leaves = other.n_degenerate = other.nodes = other.n_examined = other.n_reducible = 0
         other.lower_pruned, other.current = np.inf, None
         return other
@@ -215,7 +215,8 @@ class _Search:
         S, scores = S[~deg], scores[~deg]
         self.pool_S.append(S)
         self.pool_s.append(scores)
-        if sum(len(s) for s in self.pool_s) > 50 * _POOL:
+        self.pool_n += len(scores)
+        if self.pool_n > 50 * _POOL:
             self._trim_pool()
         order = np.argsort(scores, kind="stable")
         hopeful = order[scores[order] < self.incumbent - self.tol]
@@ -257,7 +258,7 @@ class _Search:
     def _trim_pool(self):
         S, s = np.vstack(self.pool_S), np.concatenate(self.pool_s)
         keep = np.argsort(s, kind="stable")[:_POOL]
-        self.pool_S, self.pool_s = [S[keep]], [s[keep]]
+        self.pool_S, self.pool_s, self.pool_n = [S[keep]], [s[keep]], len(keep)
 
     # ----------------------------------------------------------------- search
     def start(self, screen: bool) -> "_Search":
