@@ -27,13 +27,14 @@ def _brute(search: _Search, S):
     return np.sum((An @ x - search.b) ** 2) / search.bb
 
 
+@pytest.mark.parametrize("screen", [False, True])
 @pytest.mark.parametrize("passive", [False, True])
 @pytest.mark.parametrize("seed", range(4))
-def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed):
+def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed, screen):
     rng = np.random.default_rng(seed)
     A, b, D = _problem(rng, 30, 9, passive)
     k, forced = 4, [int(rng.integers(9))] if seed % 2 else []
-    s = _Search(A, b, k, forced, None, D, None, 0.0, 5)
+    s = _Search(A, b, k, forced, None, D, None, 0.0, 5).start(screen)
     order = s.order
     # expand the root and one child, and check each child's bound against all of its leaves
     nodes = s.children(_Node((), 0.0, 1.0))
@@ -160,3 +161,49 @@ def test_estimator_rejects_bad_time_limit():
     for bad, exc in ((0, ValueError), (-3, ValueError), ("1", TypeError), (True, TypeError)):
         with pytest.raises(exc, match="time_limit"):
             LagrangianSINDy(lib, time_limit=bad)._validate()
+
+
+@pytest.mark.parametrize("passive", [False, True])
+def test_structure_pruning_agrees_with_brute_force(passive):
+    """Banned terms and required sets prune the tree; the answer is the exhaustive search's under
+    an admissibility callable that applies the same rules leaf by leaf."""
+    rng = np.random.default_rng(11)
+    for _ in range(15):
+        m, p = int(rng.integers(15, 40)), int(rng.integers(7, 12))
+        k = int(rng.integers(2, 5))
+        A, b, D = _problem(rng, m, p, passive)
+        banned = sorted(rng.choice(p, 2, replace=False).tolist())
+        required = [rng.choice(p, 3, replace=False), rng.choice(p, 4, replace=False)]
+
+        def admissible(S, coef):
+            ok = not set(S) & set(banned) and all(set(S) & set(r.tolist()) for r in required)
+            return ok, "structure"
+
+        try:
+            ex = best_subset(A, b, k, D=D, admissible=admissible, max_visits=10**6)
+        except ValueError:
+            with pytest.raises(ValueError, match="no physically admissible"):
+                branch_and_bound(A, b, k, D=D, admissible=admissible,
+                                 structure=(banned, required))
+            continue
+        for screen in ("auto", False, True):
+            bb = branch_and_bound(A, b, k, D=D, admissible=admissible, screen=screen,
+                                  structure=(banned, required))
+            assert bb.support == ex.support and bb.proven
+            np.testing.assert_allclose(bb.coef, ex.coef, rtol=1e-9, atol=1e-12)
+
+
+def test_structure_of_an_admissibility():
+    """Velocity-linear terms are banned; each coordinate needs a term with ∂²θ/∂q̇_i² ≠ 0."""
+    from lsindy_cas import Library
+    from lsindy_cas.identify.admissibility import Admissibility
+    from lsindy_cas.identify.bnb import structure_of
+    lib = Library.polynomial(["x", "y"], "x,y,x_dot,y_dot", 2)
+    X = np.random.default_rng(0).normal(size=(30, 4))
+    adm = Admissibility(lib, X, [], np.ones(len(lib)))
+    banned, required = structure_of(adm, len(lib))
+    names = lib.names
+    assert {names[j] for j in banned} == {"x_dot", "y_dot", "x*x_dot", "x*y_dot", "x_dot*y", "y*y_dot"}
+    assert {names[j] for j in required[0]} == {"x_dot**2"}
+    assert {names[j] for j in required[1]} == {"y_dot**2"}
+    assert structure_of(lambda S, c: (True, ""), len(lib)) is None

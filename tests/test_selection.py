@@ -120,6 +120,18 @@ def test_fixed_k_beyond_the_exhaustive_budget_uses_branch_and_bound(rng, monkeyp
     assert bnb.support == full.support and bnb.search.method == "bnb" and bnb.search.proven
 
 
+def test_automatic_k_without_a_smaller_model_runs_branch_and_bound(rng, monkeypatch):
+    """No budget even for k = 1 and no time limit: branch and bound (AUTO_TIME_LIMIT) starts the
+    scan, the larger k extend it (beam, marked not proven); same answer as the exhaustive scan."""
+    bal = _synthetic(rng)
+    full = select(bal, [])
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+    auto = select(bal, [])
+    assert auto.support == full.support and auto.k == full.k
+    assert auto.steps[0].search.method == "bnb" and auto.steps[0].search.proven
+    assert all(st.search.method == "beam" and not st.search.proven for st in auto.steps[1:])
+
+
 def test_select_bad_arguments(rng):
     bal = _synthetic(rng)
     with pytest.raises(ValueError, match="excluded"):

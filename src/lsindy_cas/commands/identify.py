@@ -81,7 +81,10 @@ def run(args) -> int:
     if args.refine:
         model.refine(trajs)         # the printout and --json then show the refined model
     res = model.search_
-    if not res.proven:              # time limit or Ctrl-C in the branch and bound
+    if res.method == "beam":        # automatic k: the one-term extensions of smaller models
+        print("search not proven: support found among the one-term extensions of the best "
+              "smaller models", file=sys.stderr)
+    elif not res.proven:            # time limit or Ctrl-C in the branch and bound
         print(f"search not proven: best admissible support found in {res.seconds:.1f} s "
               f"({res.nodes:,} nodes), optimality gap {res.gap:.3g}", file=sys.stderr)
     print(model)

@@ -24,12 +24,20 @@ becomes the incumbent only when it passes them all.  A subtree is pruned when it
 the incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the resolution of a Gram-based
 score): no support in it can beat the incumbent by more than round-off.
 
+Before any bound, the admissibility rules prune exactly (:func:`structure_of`): terms no energy has
+are left out, and a subtree whose terms miss every term with ∂²θ/∂q̇_i² ≠ 0 for some coordinate i
+(no positive-definite kinetic part) is dropped.  By default two trees are searched in turn, in the
+library order and the screening order, sharing the incumbent (the first exhausted proves it).
+Candidates are fitted on the triangular factor R of A = QR (p rows instead of m); the winner is
+refitted on A, as the exhaustive search fits it.
+
 Certificate: ``gap`` = incumbent − (smallest bound left unexplored or pruned), clipped at 0; the
 search is *proven* when the tree was exhausted (then gap ≤ tol).  A time limit or Ctrl-C stops the
 search with the best admissible support found so far and its gap, marked as not proven.
 """
 from __future__ import annotations
 
+import copy
 import heapq
 import time
 from dataclasses import dataclass
@@ -40,9 +48,10 @@ import numpy as np
 from .._validate import check_real
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
+from .screening import _Basis, screening_order, structure_of
 from .search import DEGENERACY_TOL, Candidate, SearchResult, _score_chunks
 
-__all__ = ["branch_and_bound", "screening_order", "SCORE_RESOLUTION", "SKIP_TOL"]
+__all__ = ["branch_and_bound", "screening_order", "structure_of", "SCORE_RESOLUTION", "SKIP_TOL"]
 
 # Scores are relative residuals (or eigenvalues of a unit-diagonal Gram matrix) in [0, 1] computed
 # from Gram matrices: two of them closer than this are a round-off tie.
@@ -60,89 +69,6 @@ class _Node:
     pos: tuple              # positions (in the screening order) of the chosen free terms
     bound: float            # lower bound on every score in the subtree
     partial: float          # score of forced ∪ chosen terms alone (ordering only)
-
-
-class _Basis:
-    """Rows R = L⁻¹ Ĝ[U, :] and y = L⁻¹ ĉ_U of a Cholesky factor over the terms U, grown by one."""
-
-    def __init__(self, G, c):
-        self.G, self.c = G, c
-        self.R = np.zeros((0, G.shape[0]))
-        self.y = np.zeros(0)
-
-    def add(self, m: int) -> float:
-        l = self.R[:, m]
-        piv = self.G[m, m] - l @ l
-        s = np.sqrt(max(piv, 1e-300))
-        self.R = np.vstack([self.R, (self.G[m] - l @ self.R) / s])
-        if self.c is not None:
-            self.y = np.append(self.y, (self.c[m] - l @ self.y) / s)
-        return piv
-
-    def deflated(self, cols):
-        """Gram matrix and right side of ``cols`` with the span of U projected out."""
-        Rc = self.R[:, cols]
-        Gd = self.G[np.ix_(cols, cols)] - Rc.T @ Rc
-        cd = None if self.c is None else self.c[cols] - Rc.T @ self.y
-        return Gd, cd
-
-
-def screening_order(G: np.ndarray, c: np.ndarray | None, forced, free, k: int,
-                    GD: np.ndarray | None = None) -> np.ndarray:
-    """The free terms, likely ones first: a forward-stepwise pass, then the rest by one-term score.
-
-    Driven: each step adds the term that explains most of what forced ∪ chosen leave unexplained
-    (skipping terms dependent on them); passive: the term that lowers the smallest eigenvalue of
-    the chosen terms' Gram matrix most (starting from the most correlated pair).  The stepwise pass
-    runs for max(2k, 8) terms; the others follow by their one-term score given the forced terms.
-    """
-    free = [int(j) for j in free]
-    n_steps = min(len(free), max(2 * k, 8))
-    chosen: list = []
-    if c is not None:
-        basis = _Basis(G, c)
-        for f in forced:
-            basis.add(int(f))
-        Gd, cd = basis.deflated(free)
-        single = cd ** 2 / np.maximum(np.diag(Gd), 1e-300)
-        single[np.diag(Gd) < DEGENERACY_TOL] = -1.0
-        for _ in range(n_steps):
-            Gd, cd = basis.deflated(free)
-            piv = np.diag(Gd)
-            gain = np.where(piv < DEGENERACY_TOL, -1.0, cd ** 2 / np.maximum(piv, 1e-300))
-            gain[[free.index(j) for j in chosen]] = -np.inf
-            j = free[int(np.argmax(gain))]
-            if gain.max() < 0:
-                break
-            chosen.append(j)
-            basis.add(j)
-    else:
-        base = [int(f) for f in forced]
-        single = np.zeros(len(free))
-        Gdep = G if GD is None else GD
-        for _ in range(n_steps):
-            best, best_j = np.inf, None
-            for j in free:
-                if j in chosen:
-                    continue
-                U = base + chosen + [j]
-                if len(U) < 2:
-                    # first term: the one most correlated with another free term (not an identity)
-                    r = np.abs(G[j, free]) * (1 - Gdep[j, free] ** 2 >= DEGENERACY_TOL)
-                    r[free.index(j)] = 0
-                    val = 1 - r.max()
-                else:
-                    if np.linalg.eigvalsh(Gdep[np.ix_(U, U)])[0] < DEGENERACY_TOL:
-                        continue
-                    val = np.linalg.eigvalsh(G[np.ix_(U, U)])[0]
-                if val < best:
-                    best, best_j = val, j
-            if best_j is None:
-                break
-            chosen.append(best_j)
-        single = -np.abs(G[np.ix_(free, free)] - np.eye(len(free))).max(axis=1)
-    rest = [free[i] for i in np.argsort(-single, kind="stable") if free[i] not in chosen]
-    return np.array(chosen + rest, dtype=np.int64)
 
 
 def _suffix_explained(Gd, cd, stop_at: float) -> np.ndarray:
@@ -177,8 +103,16 @@ def _suffix_explained(Gd, cd, stop_at: float) -> np.ndarray:
 class _Search:
     """State of one branch and bound (see the module notes)."""
 
-    def __init__(self, A, b, k, forced, admissible, D, scale_system, tol, n_report, screen=True):
+    def __init__(self, A, b, k, forced, admissible, D, scale_system, tol, n_report,
+                 structure=None, best_first=False):
         self.A, self.b, self.k = A, b, k
+        # candidates are fitted on the triangular factor of A (same least-squares problem, same
+        # singular values; p rows instead of m): A = Q R, ‖A_S ξ − b‖² = ‖R_S ξ − Qᵀb‖² + const
+        self.Af, self.bf = A, b
+        if A.shape[0] > 2 * A.shape[1]:      # R of [A b] holds R and Qᵀb (Q never formed)
+            p = A.shape[1]
+            R = np.linalg.qr(A if b is None else np.column_stack([A, b]), mode="r")
+            self.Af, self.bf = R[:p, :p], (None if b is None else R[:p, p])
         self.forced = [int(j) for j in forced]
         self.admissible, self.scale_system, self.tol = admissible, scale_system, tol
         self.n_report = n_report
@@ -191,16 +125,30 @@ class _Search:
             Dn, _ = normalise_columns(D)
             self.GD = Dn.T @ Dn
         p = A.shape[1]
-        free = [j for j in range(p) if j not in set(self.forced)]
-        self.order = (screening_order(self.G, self.c, self.forced, free, k, self.GD) if screen
-                      else np.array(free, dtype=np.int64))
+        banned, required = (set(), []) if structure is None else (set(structure[0]), structure[1])
+        self.free = [j for j in range(p) if j not in set(self.forced) and j not in banned]
+        # coverage: every support needs a term of each required set (structure_of)
+        self.cov = np.zeros((len(required), p), dtype=bool)
+        for i, idx in enumerate(required):
+            self.cov[i, np.asarray(idx, dtype=np.int64)] = True
+        self.cov_forced = self.cov[:, self.forced].any(axis=1)
         self.r = k - len(self.forced)
         self.incumbent, self.winner, self.null_dim = np.inf, None, 0
         self.candidates, self.n_reducible, self.n_examined = [], 0, 0
-        self.pool_S, self.pool_s = [], []
+        self.pool_S, self.pool_s, self.pool_n = [], [], 0
         self.n_leaves = self.n_degenerate = self.nodes = 0
         self.lower_pruned = np.inf
         self.current = None
+        self.best_first, self.queue, self.n_queued = best_first, [], 0
+        self.seen = set()                   # supports examined (shared by the trees of a search)
+
+    def clone(self) -> "_Search":
+        """A second tree on the same problem, sharing the examined supports and candidates."""
+        other = copy.copy(self)
+        other.pool_S, other.pool_s, other.pool_n, other.queue = [], [], 0, []
+        other.n_leaves = other.n_degenerate = other.nodes = other.n_examined = other.n_reducible = 0
+        other.lower_pruned, other.current = np.inf, None
+        return other
 
     # ----------------------------------------------------------------- bounds
     def _score(self, explained):
@@ -213,8 +161,9 @@ class _Search:
         last = node.pos[-1] if node.pos else -1
         js = np.arange(last + 1, n - left + 1)
         U = self.forced + [int(self.order[j]) for j in node.pos]
+        cov_u = self.cov_forced | self.cov[:, U].any(axis=1)
         if left == 1:
-            self.leaves(U, js)
+            self.leaves(U, js[(cov_u[:, None] | self.cov[:, self.order[js]]).all(axis=0)])
             return None
         rest = self.order[last + 1:]
         if self.b is not None:
@@ -246,12 +195,16 @@ class _Search:
                 length = min(len(rest), 2 * length)
             ok = np.ones(len(js), dtype=bool)
         bounds = np.maximum(bounds, node.bound)       # a child's superset is inside the parent's
+        # a child whose superset misses a required set holds no admissible support
+        ok = ok & (cov_u[:, None] | self.cov[:, self.order[js]] | self.suffix_cov[:, js + 1]).all(axis=0)
         return [(_Node(node.pos + (int(j),), float(bd), float(pa)))
                 for j, bd, pa, o in zip(js, bounds, partial, ok) if o]
 
     # ----------------------------------------------------------------- leaves
     def leaves(self, U, js):
         """Score the supports U + order[j] and visit those that could beat the incumbent."""
+        if not len(js):
+            return
         S = np.sort(np.hstack([np.broadcast_to(np.array(U, np.int64), (len(js), len(U))),
                                self.order[js][:, None]]), axis=1)
         scores, deg = np.empty(len(S)), np.empty(len(S), dtype=bool)
@@ -262,95 +215,147 @@ class _Search:
         S, scores = S[~deg], scores[~deg]
         self.pool_S.append(S)
         self.pool_s.append(scores)
-        if sum(len(s) for s in self.pool_s) > 50 * _POOL:
+        self.pool_n += len(scores)
+        if self.pool_n > 50 * _POOL:
             self._trim_pool()
         order = np.argsort(scores, kind="stable")
         hopeful = order[scores[order] < self.incumbent - self.tol]
         if len(hopeful) < len(order):
             self.lower_pruned = min(self.lower_pruned, float(scores[order[len(hopeful)]]))
-        if not len(hopeful):
+        if self.best_first:        # queued: examined when no open node's bound is below them
+            for idx in hopeful:
+                heapq.heappush(self.queue, (float(scores[idx]), self.n_queued, tuple(S[idx].tolist())))
+                self.n_queued += 1
             return
-        red = reducible(self.G, self.c, S[hopeful])
-        for idx, r in zip(hopeful, red):
-            Sx = tuple(int(j) for j in S[idx])
-            self.n_examined += 1
-            if r:
-                self.n_reducible += 1
-                if self.n_reducible <= self.n_report:
-                    self.candidates.append(Candidate(Sx, float(scores[idx]), False, REDUCIBLE_REASON))
-                continue
-            coef, nd = coef_on_support(self.A, self.b, Sx, self.scale_system)
-            cand = Candidate(Sx, float(scores[idx]), coef=coef)
-            if coef is None:
-                cand.admissible, cand.reason = False, NO_SCALE_REASON
-            elif self.admissible is None:
-                cand.admissible = True
-            else:
-                cand.admissible, cand.reason = self.admissible(Sx, coef)
-            self.candidates.append(cand)
-            if cand.admissible:
-                self.incumbent, self.winner, self.null_dim = cand.score, cand, nd
+        for idx in hopeful:
+            if self.examine(tuple(int(j) for j in S[idx]), float(scores[idx])):
                 return
+
+    def examine(self, S: tuple, score: float) -> bool:
+        """Visit one scored leaf through the rules; True when it becomes the incumbent."""
+        if S in self.seen:                  # rejected by the other tree (or the incumbent)
+            return False
+        self.seen.add(S)
+        self.n_examined += 1
+        if reducible(self.G, self.c, np.array([S]))[0]:
+            self.n_reducible += 1
+            if self.n_reducible <= self.n_report:
+                self.candidates.append(Candidate(S, score, False, REDUCIBLE_REASON))
+            return False
+        coef, nd = coef_on_support(self.Af, self.bf, S, self.scale_system)
+        cand = Candidate(S, score, coef=coef)
+        if coef is None:
+            cand.admissible, cand.reason = False, NO_SCALE_REASON
+        elif self.admissible is None:
+            cand.admissible = True
+        else:
+            cand.admissible, cand.reason = self.admissible(S, coef)
+        self.candidates.append(cand)
+        if cand.admissible:
+            self.incumbent, self.winner, self.null_dim = cand.score, cand, nd
+        return bool(cand.admissible)
 
     def _trim_pool(self):
         S, s = np.vstack(self.pool_S), np.concatenate(self.pool_s)
         keep = np.argsort(s, kind="stable")[:_POOL]
-        self.pool_S, self.pool_s = [S[keep]], [s[keep]]
+        self.pool_S, self.pool_s, self.pool_n = [S[keep]], [s[keep]], len(keep)
 
     # ----------------------------------------------------------------- search
-    def run(self, time_limit, progress):
-        t0 = time.monotonic()
-        heap = [((0.0, 0, 0.0), 0, _Node((), 0.0, 1.0))]
-        counter, interrupted, stopped, last_report = 1, False, False, t0
-        try:
-            while heap:
-                node = heapq.heappop(heap)[2]
-                if node.bound >= self.incumbent - self.tol:
-                    self.lower_pruned = min(self.lower_pruned, node.bound)
-                    continue
-                self.current = node
-                self.nodes += 1
-                kids = self.children(node)
-                self.current = None
-                for ch in kids or ():
-                    if ch.bound >= self.incumbent - self.tol:
-                        self.lower_pruned = min(self.lower_pruned, ch.bound)
-                        continue
-                    key = (ch.bound if ch.bound > self.tol else 0.0, -len(ch.pos), ch.pos[-1],
-                           ch.partial)
-                    heapq.heappush(heap, (key, counter, ch))
-                    counter += 1
-                now = time.monotonic()
-                if progress is not None and now - last_report > _REPORT_EVERY:
-                    last_report = now
-                    self._report(progress, heap, now - t0)
-                if heap and (len(heap) > _MAX_OPEN or
-                             (time_limit is not None and now - t0 > time_limit)):
-                    stopped = True
-                    break
-        except KeyboardInterrupt:
-            interrupted = True
-        lower = min([self.lower_pruned] + [h[2].bound for h in heap]
-                    + ([self.current.bound] if self.current is not None else []))
-        seconds = time.monotonic() - t0
-        if progress is not None:
-            self._report(progress, heap, seconds)
-        return lower, not (heap or interrupted or stopped or self.current is not None), seconds, interrupted
+    def start(self, screen: bool) -> "_Search":
+        """This search's tree over the free terms in library order or the screening order."""
+        self.order = (screening_order(self.G, self.c, self.forced, self.free, self.k, self.GD)
+                      if screen else np.array(self.free, dtype=np.int64))
+        oc = self.cov[:, self.order]
+        self.suffix_cov = np.zeros((len(oc), len(self.order) + 1), dtype=bool)
+        self.suffix_cov[:, :-1] = np.flip(np.logical_or.accumulate(np.flip(oc, 1), axis=1), 1)
+        self.heap, self.counter = [((0.0, 0, 0.0), 0, _Node((), 0.0, 1.0))], 1
+        return self
 
-    def _report(self, progress, heap, elapsed):
-        lower = min([self.lower_pruned] + [h[2].bound for h in heap])
-        gap = max(0.0, self.incumbent - lower) if np.isfinite(self.incumbent) else float("inf")
-        progress(self.nodes, 0)
-        status = getattr(progress, "status", None)
-        if status is not None:
-            status(f"gap {gap:.2e}, best {self.incumbent:.3e}, {elapsed:.1f} s")
+    def advance(self, until: float) -> str:
+        """Expand until the clock passes ``until``: "done" (tree exhausted), "open" or "full"."""
+        heap = self.heap
+        while heap or self.queue:
+            if self.queue and (not heap or self.queue[0][0] <= heap[0][0][0]):
+                score, _, S = heapq.heappop(self.queue)
+                if score >= self.incumbent - self.tol:
+                    self.lower_pruned = min(self.lower_pruned, score)
+                else:
+                    self.examine(S, score)
+                continue
+            node = heapq.heappop(heap)[2]
+            if node.bound >= self.incumbent - self.tol:
+                self.lower_pruned = min(self.lower_pruned, node.bound)
+                continue
+            self.current = node
+            self.nodes += 1
+            kids = self.children(node)
+            self.current = None
+            for ch in kids or ():
+                if ch.bound >= self.incumbent - self.tol:
+                    self.lower_pruned = min(self.lower_pruned, ch.bound)
+                    continue
+                key = (ch.bound if ch.bound > self.tol else 0.0, -len(ch.pos), ch.pos[-1], ch.partial)
+                heapq.heappush(heap, (key, self.counter, ch))
+                self.counter += 1
+            if len(heap) + len(self.queue) > _MAX_OPEN:
+                return "full"
+            if time.monotonic() > until:
+                return "open" if heap or self.queue else "done"
+        return "done"
+
+    def lower(self) -> float:
+        """Smallest bound or score left unexplored or pruned: no unexamined support scores less."""
+        return min([self.lower_pruned] + [h[2].bound for h in self.heap] + [q[0] for q in self.queue[:1]]
+                   + ([self.current.bound] if self.current is not None else []))
+
+
+def _drive(trees, time_limit, progress):
+    """Advance the trees in turn (slices of _REPORT_EVERY s), sharing the incumbent.
+
+    Every tree covers all supports, so the first one exhausted proves the incumbent; each tree's
+    lower bound holds for every support it has not examined, so the largest one bounds the gap.
+    Returns (lower, proven, seconds, interrupted).
+    """
+    t0 = time.monotonic()
+    deadline = np.inf if time_limit is None else t0 + time_limit
+    state, interrupted = "open", False
+    try:
+        while state == "open":
+            for s in trees:
+                best = min(trees, key=lambda t: t.incumbent)
+                s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
+                state = s.advance(min(deadline, time.monotonic() + _REPORT_EVERY))
+                if progress is not None:
+                    _report(progress, trees, time.monotonic() - t0)
+                if state != "open" or time.monotonic() > deadline:
+                    break
+            if time.monotonic() > deadline and state == "open":
+                state = "time"
+    except KeyboardInterrupt:
+        interrupted = True
+    best = min(trees, key=lambda t: t.incumbent)
+    for s in trees:
+        s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
+    lower = max(s.lower() for s in trees)
+    return lower, state == "done" and not interrupted, time.monotonic() - t0, interrupted
+
+
+def _report(progress, trees, elapsed):
+    inc = min(t.incumbent for t in trees)
+    lower = max(t.lower() for t in trees)
+    gap = max(0.0, inc - lower) if np.isfinite(inc) else float("inf")
+    progress(sum(t.nodes for t in trees), 0)
+    status = getattr(progress, "status", None)
+    if status is not None:
+        status(f"gap {gap:.2e}, best {inc:.3e}, {elapsed:.1f} s")
 
 
 def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                      admissible: Callable | None = None, D: np.ndarray | None = None,
                      scale_system: tuple | None = None, time_limit: float | None = None,
                      tol: float = SCORE_RESOLUTION, n_report: int = 10,
-                     progress: Callable | None = None, screen: bool = False) -> SearchResult:
+                     progress: Callable | None = None, screen="auto",
+                     structure=None, best_first: bool = False) -> SearchResult:
     """Best admissible k-term support of ``A ξ ≈ b`` (or of a null vector) by branch and bound.
 
     Same inputs and result as :func:`lsindy_cas.identify.search.best_subset`, plus a certificate
@@ -367,12 +372,20 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     progress : callable ``(n_done, n_total)``, optional
         Called with (nodes expanded, 0) a few times a second; its ``status(text)`` method, if it has
         one, receives the current gap, best score and elapsed time.
-    screen : bool
-        Order the free terms by :func:`screening_order` instead of the library's order (default;
-        a polynomial library lists low degrees first).  The answer is the same; measured on the
-        paper's clean 1 s runs without priors the library order is faster: spherical k = 3, 16
-        nodes / 1.1 s against 416 / 5.9 s; cart k = 4, proven in 499 nodes / 8.3 s against nothing
-        admissible found in 15 s (benchmarks/bench_bnb.py).
+    screen : {"auto", True, False}
+        The order of the free terms: the library's (False; a polynomial library lists low degrees
+        first), :func:`screening_order` (True), or both trees searched in turn sharing the
+        incumbent, the first one exhausted proving it ("auto", default).  The answer is the same;
+        which order finds the winner first depends on the data (benchmarks/bench_bnb.py: the
+        library order on the paper's 1 s runs, the screening order on rich data).
+    structure : (banned, required), optional
+        Terms no admissible support has and sets each support must meet (default
+        :func:`structure_of` ``(admissible)``: found when ``admissible`` is an
+        :class:`~lsindy_cas.identify.admissibility.Admissibility`).
+    best_first : bool
+        Queue scored leaves and examine them only when no open node's bound is below them (the
+        first admissible one is then proven at once); default: examine each node's leaves as
+        soon as they are scored, which finds an incumbent earlier when bounds are weak.
 
     Returns
     -------
@@ -395,18 +408,31 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         from .search import best_subset
         return best_subset(A, b, k, forced, admissible=admissible, D=D, scale_system=scale_system,
                            n_report=n_report)
-    s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, screen)
-    lower, proven, seconds, interrupted = s.run(time_limit, progress)
+    if structure is None:
+        structure = structure_of(admissible, p)
+    s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
+    trees = ([s.start(False), s.clone().start(True)] if screen == "auto"
+             else [s.start(bool(screen))])
+    lower, proven, seconds, interrupted = _drive(trees, time_limit, progress)
+    for t in trees[1:]:
+        s.pool_S += t.pool_S
+        s.pool_s += t.pool_s
+        for name in ("n_leaves", "n_degenerate", "nodes", "n_examined", "n_reducible"):
+            setattr(s, name, getattr(s, name) + getattr(t, name))
     if s.winner is None and interrupted:
         raise KeyboardInterrupt            # nothing to return: let the caller stop
     if s.winner is None:
         why = "; ".join(sorted({c.reason for c in s.candidates if c.reason}))
         raise ValueError(f"no physically admissible {k}-term model "
                          + ("among all supports" if proven else f"found in {seconds:.1f} s")
-                         + (f" (reasons: {why})" if why else ""))
+                         + f" ({s.nodes:,} nodes, {s.n_leaves:,} supports scored"
+                         + (f"; reasons: {why})" if why else ")"))
     s._trim_pool()
     sup, sc = s.pool_S[0], s.pool_s[0]
     w = s.winner
+    coef, nd = coef_on_support(A, b, w.support, scale_system)     # as the exhaustive path
+    if coef is not None:
+        w.coef, s.null_dim = coef, nd
     seen = {c.support for c in s.candidates}
     runners = [Candidate(tuple(int(j) for j in S), float(v)) for S, v in zip(sup, sc)
                if tuple(int(j) for j in S) not in seen][:n_report]

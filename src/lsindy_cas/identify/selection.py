@@ -32,12 +32,12 @@ on the paper's 1 s runs at σ = 1e-3: cart-pendulum — the 4-term energy has χ
 imitation held-out errors 10× smaller but χ = 2.1–3.3.
 
 Where scoring every support is too much (more than ``EXHAUSTIVE`` supports): when k is given,
-branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given), and so in
-the automatic scan of k when no smaller model is there to extend and a ``time_limit`` is given
-(without one that k is skipped, as before); otherwise the candidates are the one-term extensions
-of the best ``BEAM`` supports of the level below (fast, not exact: above the true k every
-near-perfect support is a smaller one in disguise, which an exact search of the best *admissible*
-support would have to rule out one by one).
+branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given), and so
+in the automatic scan of k when no smaller model is there to extend (``time_limit`` seconds, or
+``AUTO_TIME_LIMIT`` without one; the search says whether it was proven); otherwise the candidates
+are the one-term extensions of the best ``BEAM`` supports of the level below (fast, not exact:
+above the true k every near-perfect support is a smaller one in disguise, which an exact search of
+the best *admissible* support would have to rule out one by one).
 """
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ import numpy as np
 
 from .balance import EnergyBalance
 from .fitting import null_vector
-from .bnb import branch_and_bound
+from .bnb import branch_and_bound, structure_of
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 
@@ -64,6 +64,9 @@ EXHAUSTIVE = 1_500_000
 BEAM = 2000
 MAX_VISITS = 2000          # beam: candidates examined for admissibility before giving up
 MAX_EXTRA = 8              # automatic k: at most this many terms beyond the prior terms
+# Automatic k without a time limit: seconds of branch and bound for a k with no smaller model to
+# extend (the elastic pendulum without priors: no admissible model below k = 4 of its 5 terms).
+AUTO_TIME_LIMIT = 60.0
 # Held-out errors below this (a relative residual of 1e-9, the accuracy of a simulation at
 # rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
 _CV_FLOOR = 1e-18
@@ -204,14 +207,13 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score every support
     can_extend = prev is not None and prev.search is not None and prev.search.supports is not None
     if beam and automatic and not can_extend and time_limit is None:
-        raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms are too many to "
-                         "score without a smaller model to extend (give a time limit to search "
-                         "them by branch and bound)")
+        time_limit = AUTO_TIME_LIMIT     # branch and bound, reported as not proven if cut short
     if beam and automatic and can_extend:
         res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
     elif beam:                                           # fixed k, or no smaller model to extend
         res = branch_and_bound(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
-                               scale_system=scale_system, time_limit=time_limit, progress=progress)
+                               scale_system=scale_system, time_limit=time_limit, progress=progress,
+                               structure=_local_structure(admissible, p, cols))
     else:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress)
@@ -224,6 +226,17 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     if res.supports is not None:
         res.supports = cols.keep[res.supports]
     return res, beam
+
+
+def _local_structure(admissible, p, cols):
+    """:func:`~lsindy_cas.identify.bnb.structure_of` in the searched columns' indices (or None)."""
+    st = structure_of(admissible, p)
+    if st is None:
+        return None
+    banned = [cols.pos[j] for j in st[0] if j in cols.pos]
+    required = [np.array([cols.pos[int(j)] for j in r if int(j) in cols.pos], dtype=np.int64)
+                for r in st[1]]
+    return banned, required
 
 
 def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_report=10,
@@ -243,7 +256,9 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
     if v.winner is None:
         raise ValueError(f"no physically admissible {k}-term model among the one-term extensions "
                          "of the best smaller models")
-    return v.result(S, scores, degenerate)
+    res = v.result(S, scores, degenerate)
+    res.method, res.proven = "beam", False      # not every support scored: no certificate
+    return res
 
 
 def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible: Callable | None = None,

@@ -1,0 +1,118 @@
+"""What the branch and bound knows before it searches: the screening order and the structure.
+
+- :func:`screening_order` — the free terms, likely ones first (forward stepwise, then by one-term
+  score), one of the two orders :func:`lsindy_cas.identify.bnb.branch_and_bound` searches;
+- :func:`structure_of` — what an :class:`~lsindy_cas.identify.admissibility.Admissibility` rules
+  out before any fit (terms no energy has; a term needed per coordinate for a positive-definite
+  kinetic part), exact consequences of its rules, so pruning with them loses no admissible support.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .search import DEGENERACY_TOL
+
+__all__ = ["screening_order", "structure_of"]
+
+
+def structure_of(admissible, p: int):
+    """What an :class:`~lsindy_cas.identify.admissibility.Admissibility` rules out before any fit.
+
+    Returns ``(banned, required)`` or None when ``admissible`` is not such an object: ``banned``
+    the terms no admissible support contains (excluded terms, terms linear in the velocities),
+    ``required`` one index array per coordinate i of the terms with ∂²θ_j/∂q̇_i² ≠ 0 at some
+    checked state — a support without one has M_ii ≡ 0 there, so its kinetic part is not positive
+    definite.  Both are exact consequences of the rules, so pruning with them loses no admissible
+    support.
+    """
+    lib, hess = getattr(admissible, "library", None), getattr(admissible, "hess", None)
+    if lib is None or hess is None or len(lib) != p:
+        return None
+    from ..mechanics.legendre import velocity_linear
+    banned = set(int(j) for j in getattr(admissible, "excluded", ())) | set(velocity_linear(lib, range(p)))
+    n = hess.shape[1]
+    required = [np.flatnonzero(np.any(hess[:, i, i, :] != 0, axis=0)) for i in range(n)]
+    return sorted(banned), required
+
+
+class _Basis:
+    """Rows R = L⁻¹ Ĝ[U, :] and y = L⁻¹ ĉ_U of a Cholesky factor over the terms U, grown by one."""
+
+    def __init__(self, G, c):
+        self.G, self.c = G, c
+        self.R = np.zeros((0, G.shape[0]))
+        self.y = np.zeros(0)
+
+    def add(self, m: int) -> float:
+        l = self.R[:, m]
+        piv = self.G[m, m] - l @ l
+        s = np.sqrt(max(piv, 1e-300))
+        self.R = np.vstack([self.R, (self.G[m] - l @ self.R) / s])
+        if self.c is not None:
+            self.y = np.append(self.y, (self.c[m] - l @ self.y) / s)
+        return piv
+
+    def deflated(self, cols):
+        """Gram matrix and right side of ``cols`` with the span of U projected out."""
+        Rc = self.R[:, cols]
+        Gd = self.G[np.ix_(cols, cols)] - Rc.T @ Rc
+        cd = None if self.c is None else self.c[cols] - Rc.T @ self.y
+        return Gd, cd
+
+
+def screening_order(G: np.ndarray, c: np.ndarray | None, forced, free, k: int,
+                    GD: np.ndarray | None = None) -> np.ndarray:
+    """The free terms, likely ones first: a forward-stepwise pass, then the rest by one-term score.
+
+    Driven: each step adds the term that explains most of what forced ∪ chosen leave unexplained
+    (skipping terms dependent on them); passive: the term that lowers the smallest eigenvalue of
+    the chosen terms' Gram matrix most (starting from the most correlated pair).  The stepwise pass
+    runs for max(2k, 8) terms; the others follow by their one-term score given the forced terms.
+    """
+    free = [int(j) for j in free]
+    n_steps = min(len(free), max(2 * k, 8))
+    chosen: list = []
+    if c is not None:
+        basis = _Basis(G, c)
+        for f in forced:
+            basis.add(int(f))
+        Gd, cd = basis.deflated(free)
+        single = cd ** 2 / np.maximum(np.diag(Gd), 1e-300)
+        single[np.diag(Gd) < DEGENERACY_TOL] = -1.0
+        for _ in range(n_steps):
+            Gd, cd = basis.deflated(free)
+            piv = np.diag(Gd)
+            gain = np.where(piv < DEGENERACY_TOL, -1.0, cd ** 2 / np.maximum(piv, 1e-300))
+            gain[[free.index(j) for j in chosen]] = -np.inf
+            j = free[int(np.argmax(gain))]
+            if gain.max() < 0:
+                break
+            chosen.append(j)
+            basis.add(j)
+    else:
+        base = [int(f) for f in forced]
+        single = np.zeros(len(free))
+        Gdep = G if GD is None else GD
+        for _ in range(n_steps):
+            best, best_j = np.inf, None
+            for j in free:
+                if j in chosen:
+                    continue
+                U = base + chosen + [j]
+                if len(U) < 2:
+                    # first term: the one most correlated with another free term (not an identity)
+                    r = np.abs(G[j, free]) * (1 - Gdep[j, free] ** 2 >= DEGENERACY_TOL)
+                    r[free.index(j)] = 0
+                    val = 1 - r.max()
+                else:
+                    if np.linalg.eigvalsh(Gdep[np.ix_(U, U)])[0] < DEGENERACY_TOL:
+                        continue
+                    val = np.linalg.eigvalsh(G[np.ix_(U, U)])[0]
+                if val < best:
+                    best, best_j = val, j
+            if best_j is None:
+                break
+            chosen.append(best_j)
+        single = -np.abs(G[np.ix_(free, free)] - np.eye(len(free))).max(axis=1)
+    rest = [free[i] for i in np.argsort(-single, kind="stable") if free[i] not in chosen]
+    return np.array(chosen + rest, dtype=np.int64)
