@@ -248,7 +248,7 @@ class LagrangianSINDy:
         simulate = (drift_simulator(self.ode(), len(self.coords_)) if self.rayleigh_ == 0 else  # stiff
                     lambda x0, t, u: simulate_ode(self.ode(), x0, t, u, len(self.coords_),  # noqa
                                                   rtol=1e-9, atol=1e-10)[0])
-        d.status, d.status_reasons, d.checks = assess(self._record, d, simulate)
+        d.status, d.status_reasons, d.checks = assess(self._record, d, simulate, self.coef_std_)
         self.status_, self.status_reasons_ = d.status, list(d.status_reasons)
         del self._record
         return self

@@ -50,7 +50,7 @@ CHI_MIN_ERROR = 0.0
 COND_BAD = 1e10
 
 
-def assess(fit, d, simulate) -> tuple[str, list, dict]:
+def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
     """The verdict on a fit.
 
     Parameters
@@ -60,6 +60,12 @@ def assess(fit, d, simulate) -> tuple[str, list, dict]:
         Its report (the status fields are filled in here).
     simulate : callable ``(x0, t, u) -> X``
         The identified model's simulation (``LagrangianSINDy.simulate``).
+    coef_std : array (p,), optional
+        Jackknife standard errors of the coefficients (``coef_std_``).  Driven data: the
+        near-null-space warning of :func:`~.diagnostics.diagnose` predicts the coefficients'
+        scatter from the residual as if every row were independent; the rows of the integral
+        form overlap, and the jackknife measures the scatter itself.  When it puts every
+        coefficient within 1/√10 of its value (the same threshold), the warning is dropped.
 
     Returns
     -------
@@ -78,6 +84,11 @@ def assess(fit, d, simulate) -> tuple[str, list, dict]:
         checks["passive_null_dim"] = extra
         if extra == 0:
             reasons = [w for w in reasons if "uniquely" not in w]
+    rel = _relative_errors(fit.coef, coef_std)
+    if not bal.passive and d.null_dim > 0 and rel is not None:
+        checks["largest_relative_std"] = rel
+        if rel < 1 / np.sqrt(_NULL_FACTOR):
+            reasons = [w for w in reasons if "uniquely" not in w]
     if np.isfinite(d.chi) and d.chi > CHI_BAD and d.held_out_error > CHI_MIN_ERROR:
         reasons.append(f"the residual is {d.chi:.3g}× what the estimated noise explains: the model "
                        "misses part of the data (a term outside the library, friction, or a "
@@ -88,8 +99,10 @@ def assess(fit, d, simulate) -> tuple[str, list, dict]:
         reasons.append(f"the chosen terms are nearly linearly dependent on these data (condition "
                        f"number {cond:.2g}): their coefficients are not determined")
     # (passive data: rejected momentum-like supports are conserved quantities, reported as such)
-    better = [] if bal.passive else [t for t in d.near_ties
-                                     if not t[2] and t[1] * NEAR_TIE < 1 and _rival(t[3])]
+    # (a constant input, the paper's scheme: rejected imitations of the work u·x are expected to
+    # fit better — that is the trap admissibility exists for — and say nothing about the library)
+    better = [] if bal.passive or fit.trap is not None else [
+        t for t in d.near_ties if not t[2] and t[1] * NEAR_TIE < 1 and _rival(t[3])]
     if better:
         terms, r, _, why = better[0]
         reasons.append(f"a model the physical rules reject fits {1 / r:.3g}× better than the "
@@ -112,6 +125,17 @@ def assess(fit, d, simulate) -> tuple[str, list, dict]:
                        "(median over stretches): the energy balances the data but does not move "
                        "like them")
     return (UNDETERMINED if reasons else OK), reasons, checks
+
+
+def _relative_errors(coef, coef_std):
+    """Largest standard error relative to its coefficient on the support (None without errors)."""
+    if coef_std is None:
+        return None
+    coef, std = np.asarray(coef, float), np.asarray(coef_std, float)
+    S = np.flatnonzero(coef)
+    if std.shape != coef.shape or not S.size or not np.all(np.isfinite(std[S])):
+        return None
+    return float(np.max(std[S] / np.abs(coef[S])))
 
 
 def _momentum(lib, S, eta) -> bool:
