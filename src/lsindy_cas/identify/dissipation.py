@@ -299,11 +299,16 @@ def norm_term(library, coef, forced) -> int:
 
 
 def check_dissipation(lib: Library, rho, X) -> None:
-    """Refuse a fitted R that creates energy: dissipated power < 0 somewhere on the data, or a
-    viscous (quadratic) part that is not positive semidefinite."""
+    """Refuse a fitted R that creates energy: dissipated power < 0 somewhere on the data or at the
+    data's velocities scaled by 1e-3 (low speed, where Coulomb terms dominate), or a viscous
+    (quadratic) part that is not positive semidefinite."""
     if not np.any(rho):
         return
-    power = power_columns(lib, X) @ rho
+    # also at the data's velocities scaled down: a negative Coulomb term (degree 1) hidden by a
+    # viscous one (degree 2) on the data still creates energy at low speed
+    n = lib.coords.n
+    slow = np.hstack([X[:, :n], 1e-3 * X[:, n:]])
+    power = np.r_[power_columns(lib, X) @ rho, 1e6 * (power_columns(lib, slow) @ rho)]
     top = max(np.max(np.abs(power)), 1e-300)
     if power.min() < -NEG_RTOL * top:
         raise ValueError("the fitted dissipation is negative (energy created, dissipated power "
