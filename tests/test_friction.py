@@ -234,3 +234,29 @@ def test_cli_bad_dissipation_one_line_exit_2(tmp_path, extra, needle):
     r = _cli("identify", f, "--coords", "s", "--features", "s,s_dot", "--degree", "2", *extra)
     assert r.returncode == 2
     assert needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_negative_coulomb_hidden_by_viscous_is_refused():
+    """R = 0.15 ṡ² − 0.001 |ṡ| dissipates positive power wherever |ṡ| > 0.0033, so on data that
+    never slow down; it still creates energy at low speed: refused (Coulomb coefficients ≥ 0)."""
+    from lsindy_cas.identify.dissipation import check_dissipation
+    lib = Library(["s"], ["s_dot**2", "Abs(s_dot)"])
+    v = np.r_[np.linspace(0.1, 1.0, 50), -np.linspace(0.1, 1.0, 50)]
+    X = np.column_stack([np.zeros_like(v), v])
+    check_dissipation(lib, np.array([0.15, 0.001]), X)                 # admissible
+    with pytest.raises(ValueError, match="dissipation is negative"):
+        check_dissipation(lib, np.array([0.15, -0.001]), X)
+
+
+def test_integral_form_clean_friction_is_exact_and_ok():
+    """σ = 0 from the project's simulator, no accelerations (integral form, held input): viscous
+    and Coulomb friction exact to 1e-3 and the status ok — the dissipation integrals' quadrature
+    error is below what the χ check calls a misfit (no false alarm on clean data)."""
+    s, runs = _oscillator("0.15*s_dot**2 + 0.2*Abs(s_dot)")
+    runs = [dataclasses.replace(tr, qdd=None) for tr in runs]
+    lib = Library(["s"], ["s**2", "s_dot**2", "s**4"])
+    model = LagrangianSINDy(lib, dissipation=["s_dot**2", "Abs(s_dot)", "s_dot**4"]).fit(runs)
+    assert model.form_ == "integral"
+    assert model.terms() == pytest.approx({"s**2": 2.5, "s_dot**2": 1.0}, rel=REL)
+    assert model.terms("rayleigh") == pytest.approx({"s_dot**2": 0.15, "Abs(s_dot)": 0.2}, rel=REL)
+    assert model.status_ == "ok", model.status_reasons_

@@ -34,7 +34,8 @@ from ..data.trajectory import Trajectory
 from ..symbolic.library import Library
 from ..data.smoothing import force_switches
 
-__all__ = ["EnergyBalance", "derivative_form", "integral_form", "cumulative_work", "HOLDS"]
+__all__ = ["EnergyBalance", "derivative_form", "integral_form", "cumulative_work", "HOLDS",
+           "increments_preferred"]
 
 HOLDS = ("auto", "zoh", "smooth")
 
@@ -79,6 +80,8 @@ class EnergyBalance:
         Integral form: the squared error of ``b`` expected from the work integral's own
         discretisation (J², rows weighted and centred as ``b``; :func:`work_error`).  On
         noise-free data it is what a correct model leaves; 0 for position increments.
+    dissipation_error : array (n_rows, r), optional
+        Estimated quadrature error of each entry of ``dissipation`` (integral form).
     """
 
     A: np.ndarray
@@ -95,6 +98,7 @@ class EnergyBalance:
     intercept: np.ndarray | None = None
     n_data_rows: int | None = None
     quadrature: float = 0.0
+    dissipation_error: np.ndarray | None = None
 
     @property
     def passive(self) -> bool:
@@ -221,12 +225,27 @@ def held_increments(tr: Trajectory, noise=None):
     """
     Q = tr.Q[:-1]
     dq = np.diff(tr.q, axis=0)
-    if noise is None:
+    if increments_preferred(tr, noise, Q):
         return np.einsum("ij,ij->i", Q, dq), "increments"
+    trap = 0.5 * (tr.qd[1:] + tr.qd[:-1]) * np.diff(tr.t)[:, None]
+    return np.einsum("ij,ij->i", Q, trap), "quadrature"
+
+
+def increments_preferred(tr: Trajectory, noise=None, Q=None) -> bool:
+    """Is ∫q̇ dt over each sample interval better taken from the position increments than from a
+    quadrature of the velocities?  (See :func:`cumulative_work`; also the choice of the velocity
+    path for the dissipation integrals, :mod:`lsindy_cas.identify.dissipation`.)
+
+    Increments: noise √2 σ_q, no quadrature error; trapezoid: noise ~ h σ_q̇ /√2 and error
+    h³/12 · q⃛ (q⃛ from second differences of q̇).  ``Q`` (n_samples − 1, n) weights the coordinates
+    (the held force; default all ones); ``noise`` None: the data are taken as exact.
+    """
+    if noise is None:
+        return True
     noise = np.asarray(noise, float)
     n = len(tr.coords)
+    Q = np.ones((tr.n_samples - 1, n)) if Q is None else Q
     h = np.diff(tr.t)[:, None]
-    trap = 0.5 * (tr.qd[1:] + tr.qd[:-1]) * h
     # trapezoid error per interval ≈ h³/12 · q⃛, q⃛ from second differences of q̇
     jerk = np.zeros_like(tr.qd)
     if tr.n_samples >= 3:
@@ -237,9 +256,7 @@ def held_increments(tr: Trajectory, noise=None):
     quad = h ** 3 / 12 * 0.5 * (np.abs(jerk[1:]) + np.abs(jerk[:-1]))
     var_dq = np.sum(Q ** 2 * 2 * noise[:n] ** 2)
     var_trap = np.sum(Q ** 2 * (0.5 * h ** 2 * noise[n:] ** 2 + quad ** 2))
-    if var_dq <= var_trap:
-        return np.einsum("ij,ij->i", Q, dq), "increments"
-    return np.einsum("ij,ij->i", Q, trap), "quadrature"
+    return bool(var_dq <= var_trap)
 
 
 def work_error(tr: Trajectory, rule: str, W: np.ndarray) -> np.ndarray:

@@ -162,7 +162,7 @@ class LagrangianSINDy:
         lib = self._active_dissipation() if dissipation else None
         if lib is None:
             return bal
-        return project(bal, dissipation_columns(lib, trajectories, bal), lib.names)
+        return project(bal, *dissipation_columns(lib, trajectories, bal, noise, True), lib.names)
 
     def _active_dissipation(self):
         """The dissipation terms still in the model (a Library), or None."""
@@ -339,13 +339,14 @@ class LagrangianSINDy:
         if scale_list is None:
             return None
         states, _, smoothed = self._prepare(scale_list)
-        scale = self._balance(states, passive=False, dissipation=False,
-                              noise=self._run_noise(smoothed))
+        noise = self._run_noise(smoothed)
+        scale = self._balance(states, passive=False, dissipation=False, noise=noise)
         if not np.any(scale.b):
             raise ValueError("scale_trajectories carry no power (Q·q̇ ≡ 0); they cannot fix the scale")
         if bal.dissipation is None:
             return scale.A, scale.b
-        return fold_scale(bal, scale, dissipation_columns(self._active_dissipation(), states, scale))
+        lib = self._active_dissipation()
+        return fold_scale(bal, scale, dissipation_columns(lib, states, scale, noise))
 
     def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the

@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .admissibility import EXCLUDED_REASON, REDUCIBLE_REASON
+from .dissipation import floored_chi
 from .fitting import normalise_columns
 from .diagnostics import NEAR_TIE, _NULL_FACTOR
 
@@ -84,6 +85,8 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
         checks["passive_null_dim"] = extra
         if extra == 0:
             reasons = [w for w in reasons if "uniquely" not in w]
+    # the dissipation integrals' own quadrature error is part of what an exact model leaves
+    d.chi = floored_chi(bal, fit.coef, d.chi)
     rel = _relative_errors(fit.coef, coef_std)
     if not bal.passive and d.null_dim > 0 and rel is not None:
         checks["largest_relative_std"] = rel
