@@ -34,7 +34,7 @@ imitation held-out errors 10× smaller but χ = 2.1–3.3.
 Where scoring every support is too much (more than ``EXHAUSTIVE`` supports): when k is given,
 branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given), and so
 in the automatic scan of k when no smaller model is there to extend (``time_limit`` seconds, or
-``AUTO_TIME_LIMIT`` without one; the search says whether it was proven); otherwise the candidates
+``AUTO_TIME_LIMIT`` for the whole scan without one; the search says whether it was proven); otherwise the candidates
 are the one-term extensions of the best ``BEAM`` supports of the level below (fast, not exact:
 above the true k every near-perfect support is a smaller one in disguise, which an exact search of
 the best *admissible* support would have to rule out one by one).
@@ -42,6 +42,7 @@ the best *admissible* support would have to rule out one by one).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import time
 from math import comb
 from typing import Callable
 
@@ -64,8 +65,9 @@ EXHAUSTIVE = 1_500_000
 BEAM = 2000
 MAX_VISITS = 2000          # beam: candidates examined for admissibility before giving up
 MAX_EXTRA = 8              # automatic k: at most this many terms beyond the prior terms
-# Automatic k without a time limit: seconds of branch and bound for a k with no smaller model to
-# extend (the elastic pendulum without priors: no admissible model below k = 4 of its 5 terms).
+# Automatic k without a time limit: seconds of the whole scan after which a k with no smaller model
+# to extend gets no branch and bound (the elastic pendulum without priors: no admissible model
+# below k = 4 of its 5 terms); one budget for the scan, so a refusal never takes minutes per k.
 AUTO_TIME_LIMIT = 60.0
 # Held-out errors below this (a relative residual of 1e-9, the accuracy of a simulation at
 # rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
@@ -195,7 +197,7 @@ class _Columns:
 
 
 def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
-              time_limit=None, automatic=False):
+              time_limit=None, automatic=False, auto_limit=AUTO_TIME_LIMIT):
     """Best admissible k-support, SearchResult in full indices: exhaustive up to EXHAUSTIVE
     supports; beyond, the beam from ``prev`` (automatic k) or else branch and bound."""
     p = bal.A.shape[1]
@@ -207,7 +209,11 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score every support
     can_extend = prev is not None and prev.search is not None and prev.search.supports is not None
     if beam and automatic and not can_extend and time_limit is None:
-        time_limit = AUTO_TIME_LIMIT     # branch and bound, reported as not proven if cut short
+        if auto_limit <= 0:
+            raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms and the "
+                             f"automatic scan's {AUTO_TIME_LIMIT:g} s of branch and bound are "
+                             "spent: give n_terms, prior terms or a time limit")
+        time_limit = auto_limit          # branch and bound, reported as not proven if cut short
     if beam and automatic and can_extend:
         res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
     elif beam:                                           # fixed k, or no smaller model to extend
@@ -310,10 +316,12 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     if k_hi < k_lo:
         raise ValueError(f"max_terms = {max_terms} is smaller than the {k_lo} terms every model needs")
     steps, best, prev, reasons, fits = [], None, None, [], None
+    deadline = time.monotonic() + AUTO_TIME_LIMIT    # one budget for the whole scan, not per k
     for k in range(k_lo, k_hi + 1):
         try:
             res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev,
-                                  time_limit, automatic=True)
+                                  time_limit, automatic=True,
+                                  auto_limit=deadline - time.monotonic())
         except ValueError as exc:        # no admissible k-term model: try the next k
             reasons.append(f"k = {k}: {exc}")
             prev = None
