@@ -19,9 +19,10 @@ R = b q̇²/2 — on the second hinge of the double pendulum it acts on the rela
 ``frictionloss`` μ (dry friction on the cart) is a soft box constraint |f| ≤ μ, not an exact
 Coulomb force: MuJoCo's constraint force is f = −clip((a₀ + b·v)/(A + R), μ) with a₀ the
 unconstrained acceleration, A the inverse inertia, b = 2/(d_max·timeconst) from ``solreffriction``
-and R = A(1 − d)/d from ``solimpfriction``.  So it slides with exactly f = −μ·sign(v + a₀/b) — the
-sign switches a velocity a₀/b (a time ~1/b) away from v = 0 — and sticks (|f| < μ) with a creep
-speed ~(1 − d)a₀/(d b).  The Rayleigh term μ|v| (force μ·sign(v)) is what it tends to as the time
+and R = (1 − d)/d times MuJoCo's approximation of A (its inertia at the model's reference pose), d
+from ``solimpfriction`` (checked against MuJoCo's ``efc_force`` to 4e-15 at random states).  So
+it slides with exactly f = −μ·sign(v + a₀/b) — the sign switches a velocity a₀/b (a time ~1/b)
+away from v = 0 — and sticks (|f| < μ) with a creep speed ~(1 − d)a₀/(d b).  The Rayleigh term μ|v| (force μ·sign(v)) is what it tends to as the time
 constant goes to 0: ``friction_timeconst`` sets it (MuJoCo's default 0.02 s; it clamps it to two
 timesteps), ``friction_impedance`` sets d (default 0.9, rising to 0.95).
 
