@@ -56,6 +56,31 @@ def test_quick_run_writes_table_and_figure(tmp_path, capsys):
         assert piece["ours"][2] <= piece["ours_before_refinement"][2]
 
 
+def test_rate_lag_from_identification_pieces():
+    """The rig's rates trail dθ/dt: τ = 0.80 ms on the 4 identification pieces (0.74–0.96 ms per
+    piece); a synthetic sine whose rate is delayed by exactly 1 ms gives back 1 ms."""
+    from lsindy_cas import Trajectory
+    ex = _example()
+    ids, _ = ex.load()
+    assert ex.rate_lag(ids) == pytest.approx(0.80e-3, abs=0.02e-3)
+    t = np.arange(0, 5, 0.01)
+    w = 8.0
+    tr = Trajectory(t, np.sin(w * t)[:, None], (w * np.cos(w * (t - 1e-3)))[:, None], ["theta"])
+    # the delayed rate is w cos(w t) + 1e-3 w² sin(w t) + O((w·1e-3)²): τ to ~1e-5 relative
+    assert ex.rate_lag([tr]) == pytest.approx(1e-3, rel=1e-4)
+
+
+def test_initial_state_advances_the_rate_only():
+    from lsindy_cas.mechanics.parametric import ParametricDynamics
+    ex = _example()
+    terms, diss, coef = ex.authors_model()
+    ode = ParametricDynamics(["theta"], terms, diss).bind(coef)
+    x = np.array([np.pi - 0.5, 1.0])
+    acc = float(np.asarray(ode(x, 0.0)).ravel()[1])
+    np.testing.assert_allclose(ex.initial_state(ode, x, 2e-3), [x[0], x[1] + 2e-3 * acc])
+    np.testing.assert_array_equal(ex.initial_state(ode, x, 0.0), x)
+
+
 def test_start_robustness_counts_ties_as_ours():
     # the authors' model against itself: equal errors at every start, so "ours <= authors'" at all
     from lsindy_cas.mechanics.parametric import ParametricDynamics

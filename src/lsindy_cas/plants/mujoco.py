@@ -16,7 +16,15 @@ Point masses are bodies with an explicit ``<inertial>`` of mass m and a rotation
 ``POINT_INERTIA`` (MuJoCo needs a positive one): its kinetic energy is ~1e-9 of the system's.
 Friction: MuJoCo joint ``damping`` b is viscous, force −b q̇, i.e. a Rayleigh function
 R = b q̇²/2 — on the second hinge of the double pendulum it acts on the relative rate θ̇2 − θ̇1.
-``frictionloss`` (Coulomb-like, solved as a soft constraint) is exposed but not exact.
+``frictionloss`` μ (dry friction on the cart) is a soft box constraint |f| ≤ μ, not an exact
+Coulomb force: MuJoCo's constraint force is f = −clip((a₀ + b·v)/(A + R), μ) with a₀ the
+unconstrained acceleration, A the inverse inertia, b = 2/(d_max·timeconst) from ``solreffriction``
+and R = (1 − d)/d times MuJoCo's approximation of A (its inertia at the model's reference pose), d
+from ``solimpfriction`` (checked against MuJoCo's ``efc_force`` to 4e-15 at random states).  So
+it slides with exactly f = −μ·sign(v + a₀/b) — the sign switches a velocity a₀/b (a time ~1/b)
+away from v = 0 — and sticks (|f| < μ) with a creep speed ~(1 − d)a₀/(d b).  The Rayleigh term μ|v| (force μ·sign(v)) is what it tends to as the time
+constant goes to 0: ``friction_timeconst`` sets it (MuJoCo's default 0.02 s; it clamps it to two
+timesteps), ``friction_impedance`` sets d (default 0.9, rising to 0.95).
 
 Inputs are held over each sample (a digital controller's zero-order hold): the value at t_i acts on
 [t_i, t_{i+1}); MuJoCo integrates with RK4 at ``substeps`` steps per sample.
@@ -65,11 +73,12 @@ def _model(name: str, g, timestep, bodies: str, actuator: str) -> str:
 </mujoco>"""
 
 
-def _cart_xml(mc, mp, L, g, cart_damping, pivot_damping, cart_frictionloss, timestep) -> str:
+def _cart_xml(mc, mp, L, g, cart_damping, pivot_damping, cart_frictionloss, timestep,
+              friction="") -> str:
     # hinge axis -y: rotating (0, 0, -L) by theta about -y gives (L sin θ, 0, -L cos θ)
     return _model("cart_pendulum", g, timestep, f"""{_point("cart", mc, "0 0 0")}
       <joint name="x" type="slide" axis="1 0 0" damping="{cart_damping!r}"
-             frictionloss="{cart_frictionloss!r}"/>
+             frictionloss="{cart_frictionloss!r}"{friction}/>
       <body name="pivot" pos="0 0 0">
         {_MASSLESS}
         <joint name="theta" type="hinge" axis="0 -1 0" damping="{pivot_damping!r}"/>
@@ -192,10 +201,16 @@ class MujocoPlant:
 
 
 def cart_pendulum(mc=1.0, mp=0.1, L=1.0, g=G, cart_damping=0.0, pivot_damping=0.0,
-                  cart_frictionloss=0.0, timestep=1e-3) -> MujocoPlant:
-    """The cart-pendulum (DESIGN.md convention) in MuJoCo, with optional viscous friction.
+                  cart_frictionloss=0.0, timestep=1e-3, friction_timeconst=None,
+                  friction_impedance=None) -> MujocoPlant:
+    """The cart-pendulum (DESIGN.md convention) in MuJoCo, with optional friction.
 
-    ``cart_damping`` b_x and ``pivot_damping`` b_θ give R = b_x ẋ²/2 + b_θ θ̇²/2.
+    ``cart_damping`` b_x and ``pivot_damping`` b_θ give R = b_x ẋ²/2 + b_θ θ̇²/2;
+    ``cart_frictionloss`` μ adds MuJoCo's dry friction on the cart, nominally μ|ẋ| in R (the plant's
+    ``rayleigh``), in fact a soft constraint (module docstring).  ``friction_timeconst`` (s) and
+    ``friction_impedance`` (d in (0, 1)) set that constraint's ``solreffriction`` time constant
+    (damping ratio 1) and ``solimpfriction`` impedance (d at both ends); None keeps MuJoCo's
+    defaults (0.02 s; 0.9 to 0.95).
     """
     for name, v in (("mc", mc), ("mp", mp), ("L", L), ("timestep", timestep)):
         if not v > 0:
@@ -204,13 +219,28 @@ def cart_pendulum(mc=1.0, mp=0.1, L=1.0, g=G, cart_damping=0.0, pivot_damping=0.
                     ("cart_frictionloss", cart_frictionloss)):
         if not v >= 0:
             raise ValueError(f"{name} must be non-negative, got {v}")
+    friction = ""
+    if friction_timeconst is not None:
+        if not friction_timeconst >= 2 * timestep:
+            raise ValueError(f"friction_timeconst must be at least two timesteps "
+                             f"({2 * timestep!r} s; MuJoCo clamps it), got {friction_timeconst}")
+        friction += f' solreffriction="{friction_timeconst!r} 1"'
+    if friction_impedance is not None:
+        if not 0 < friction_impedance < 1:
+            raise ValueError(f"friction_impedance must be in (0, 1), got {friction_impedance}")
+        d = friction_impedance
+        friction += f' solimpfriction="{d!r} {d!r} 0.001 0.5 2"'
     rayleigh = {k: v / 2 for k, v in (("x_dot**2", cart_damping), ("theta_dot**2", pivot_damping)) if v}
+    if cart_frictionloss:
+        rayleigh["Abs(x_dot)"] = cart_frictionloss
     return MujocoPlant(
-        _cart_xml(mc, mp, L, g, cart_damping, pivot_damping, cart_frictionloss, timestep),
+        _cart_xml(mc, mp, L, g, cart_damping, pivot_damping, cart_frictionloss, timestep, friction),
         ["x", "theta"], "x", to_project=lambda qp, qv: (qp, qv), to_mujoco=lambda q, qd: (q, qd),
         rayleigh=rayleigh, parameters=dict(mc=mc, mp=mp, L=L, g=g, cart_damping=cart_damping,
                                            pivot_damping=pivot_damping,
-                                           cart_frictionloss=cart_frictionloss))
+                                           cart_frictionloss=cart_frictionloss,
+                                           friction_timeconst=friction_timeconst,
+                                           friction_impedance=friction_impedance))
 
 
 def double_pendulum(m1=1.0, m2=1.0, L1=1.0, L2=1.0, g=G, damping1=0.0, damping2=0.0,
