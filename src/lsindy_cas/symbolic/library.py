@@ -175,6 +175,23 @@ class Library:
     # ------------------------------------------------------------------ numeric
     @cached_property
     def _functions(self) -> dict:
+        """The CasADi Functions of Θ and its derivatives: from the disk cache
+        (:mod:`.fcache`) when this library was built before, else built and cached."""
+        from . import fcache
+        n, p = self.coords.n, len(self)
+        sizes = {"theta": p, "gamma": p, "grad": 2 * n * p, "dqd": n * p, "hess": n * n * p}
+
+        def ok(funcs):
+            return all(funcs[k].n_in() == (2 if k == "gamma" else 1) and funcs[k].n_out() == 1
+                       and funcs[k].size1_in(0) == 2 * n and funcs[k].nnz_out(0) == sizes[k]
+                       for k in sizes)
+        funcs = fcache.load(self.coords.names, self.names, ok)
+        if funcs is None:
+            funcs = self._build_functions()
+            fcache.save(self.coords.names, self.names, funcs)
+        return funcs
+
+    def _build_functions(self) -> dict:
         c = self.coords
         x, xd = c.x, ca.SX.sym("xd", 2 * c.n)
         theta = self.sx.T                                     # (p, 1)
