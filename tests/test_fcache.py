@@ -86,3 +86,36 @@ def test_switched_off(tmp_path, monkeypatch):
     monkeypatch.delenv("LSINDY_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     assert fcache.cache_dir() == tmp_path / "lsindy_cas"
+
+
+def test_polynomial_library_from_cached_names(cache, monkeypatch):
+    built = Library.polynomial(["theta", "phi"], FEATURES, 3)
+    assert len(list(cache.glob("polynomial-*.json"))) == 1
+    monkeypatch.setattr("sympy.Mul", lambda *a: pytest.fail("products formed again"))
+    lib = Library.polynomial(["theta", "phi"], FEATURES, 3)
+    assert lib.names == built.names and lib.spec == built.spec and len(lib) == len(built)
+    monkeypatch.undo()
+    # each term parses from its name to the same sympy expression (checked before caching)
+    assert list(lib.exprs) == list(built.exprs)
+    assert lib.index("theta_dot**2") == built.index("theta_dot**2")
+    assert lib.index("theta_dot*theta_dot") == built.index("theta_dot**2")
+    np.testing.assert_array_equal(lib.coefficients("2*cos(theta) + phi_dot**2*sin(theta)"),
+                                  built.coefficients("2*cos(theta) + phi_dot**2*sin(theta)"))
+    assert [lib.velocity_degree(j) for j in range(len(lib))] == \
+        [built.velocity_degree(j) for j in range(len(built))]
+    extra = Library(["theta", "phi"], ["theta**5"])
+    assert (lib + extra).names == (built + extra).names
+    assert _same(_values(lib), _values(built))
+    with pytest.raises(ValueError, match="not in the library"):
+        lib.index("theta**7")
+
+
+def test_polynomial_damaged_record_is_rebuilt(cache):
+    built = Library.polynomial(["theta", "phi"], FEATURES, 2)
+    (path,) = cache.glob("polynomial-*.json")
+    data = json.loads(path.read_text())
+    data["names"] = data["names"][:3] + [7]
+    path.write_text(json.dumps(data))
+    assert Library.polynomial(["theta", "phi"], FEATURES, 2).names == built.names
+    with pytest.raises(ValueError, match="feature"):      # bad input is still checked
+        Library.polynomial(["theta", "phi"], "cos(theta),foo", 2)
