@@ -191,11 +191,11 @@ def fresh_stage_times(csv: Path, out: Path, env) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def compile_package(env) -> None:
+def compile_package(env, src: Path = HERE.parent / "src") -> None:
     """Byte-compile the package as an installation does (``__pycache__`` is git-ignored)."""
     e = dict(env)
     e.pop("PYTHONDONTWRITEBYTECODE", None)
-    subprocess.run([sys.executable, "-m", "compileall", "-q", str(HERE.parent / "src" / "lsindy_cas")],
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(Path(src) / "lsindy_cas")],
                    check=True, env=e, stdout=subprocess.DEVNULL)
 
 
@@ -207,33 +207,52 @@ def main(argv=None):
     ap.add_argument("--reps", type=int, default=None, help="runs of ours (default 5, quick 3)")
     ap.add_argument("--no-compile", action="store_true",
                     help="do not byte-compile the package first (each process compiles it)")
+    ap.add_argument("--baseline-src", metavar="DIR",
+                    help="also time `lsindy identify` from this source tree (e.g. an earlier "
+                    "commit's src/, from `git archive`), interleaved: before/after in one run")
     a = ap.parse_args(argv)
     reps = a.reps or (3 if a.quick else 5)
     loop_reps = 1 if a.quick else 3
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(HERE.parent / "src"), env.get("PYTHONPATH", "")])
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    base_env = None
+    if a.baseline_src:
+        base_env = dict(env, PYTHONPATH=os.pathsep.join([str(Path(a.baseline_src).resolve()),
+                                                        os.environ.get("PYTHONPATH", "")]))
     if not a.no_compile:
         compile_package(env)
+        if base_env:
+            compile_package(env, Path(a.baseline_src))
     load = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        # the CasADi-Function / library cache (symbolic/fcache.py) in a fresh folder: the first
+        # run fills it (reported as "cold"), the timed runs read it
+        env["LSINDY_CACHE_DIR"] = str(tmp / "fcache")
         csv = spherical_file(tmp)
         ours_cmd = [sys.executable, "-m", "lsindy_cas.cli", *cli_args(csv, tmp / "m.json")]
         loop_cmd = [sys.executable, "-c", LOOP, str(csv), FEATURES, "3"]
         print("import time ...", file=sys.stderr)
         imp = import_time(env)
+        cold = run(ours_cmd, env)                                 # fills the cache
         print("stages (in process) ...", file=sys.stderr)
         stages = fresh_stage_times(csv, tmp / "m_stages.json", env)
         print(f"lsindy identify x {reps}, paper-style loop x {loop_reps} ...", file=sys.stderr)
-        run(ours_cmd, env)                                        # warm the file cache
-        ours, loop = [], []
+        base_cmd = [sys.executable, "-m", "lsindy_cas.cli", *cli_args(csv, tmp / "b.json")]
+        if base_env:
+            run(base_cmd, base_env)
+        ours, loop, base = [], [], []
         for i in range(max(reps, loop_reps)):                     # interleaved: same load
             if i < reps:
                 ours.append(run(ours_cmd, env))
+                if base_env:
+                    base.append(run(base_cmd, base_env))
             if i < loop_reps:
                 loop.append(run(loop_cmd, env))
         model = json.loads((tmp / "m.json").read_text())
+        same_as_base = (base_env is not None
+                        and (tmp / "m.json").read_bytes() == (tmp / "b.json").read_bytes())
     med = statistics.median
     t_ours, t_loop = med(w for w, _ in ours), med(w for w, _ in loop)
     c_ours, c_loop = med(c for _, c in ours), med(c for _, c in loop)
@@ -246,14 +265,21 @@ def main(argv=None):
           "over a bare interpreter")
     print("\n| end to end (process start to JSON) | median wall | min | max | median CPU |"
           "\n|---|---|---|---|---|")
-    for name, runs in ((f"lsindy identify (no accelerations), {reps} runs", ours),
-                       (f"paper-style loop, {loop_reps} runs", loop)):
+    rows = [(f"lsindy identify (no accelerations), {reps} runs", ours),
+            ("lsindy identify, first run (empty function cache)", [cold])]
+    if base:
+        rows.append((f"lsindy identify from {a.baseline_src}, {reps} runs", base))
+    rows.append((f"paper-style loop, {loop_reps} runs", loop))
+    for name, runs in rows:
         w = [x for x, _ in runs]
         print(f"| {name} | {med(w):.2f} s | {min(w):.2f} s | {max(w):.2f} s | "
               f"{med(c for _, c in runs):.2f} s |")
     print(f"\nspeed-up (medians): {t_loop / t_ours:.1f}x wall (target >= 20x), "
           f"{c_loop / c_ours:.1f}x CPU; byte-compiled: {not a.no_compile}; load average at start "
           f"{load[0]:.2f}; H = {model['hamiltonian']}")
+    if base:
+        print(f"baseline: {t_loop / med(w for w, _ in base):.1f}x wall, "
+              f"{c_loop / med(c for _, c in base):.1f}x CPU; same model file bytes: {same_as_base}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "cli.json").write_text(json.dumps({
@@ -262,6 +288,12 @@ def main(argv=None):
         "ours_median_s": t_ours, "loop_median_s": t_loop, "speedup": t_loop / t_ours,
         "ours_median_cpu_s": c_ours, "loop_median_cpu_s": c_loop, "speedup_cpu": c_loop / c_ours,
         "byte_compiled": not a.no_compile, "imports": imp,
+        "cold_s": cold[0], "cold_cpu_s": cold[1],
+        "baseline": None if not base else {
+            "src": a.baseline_src, "wall_s": [w for w, _ in base], "cpu_s": [c for _, c in base],
+            "median_s": med(w for w, _ in base), "median_cpu_s": med(c for _, c in base),
+            "speedup": t_loop / med(w for w, _ in base),
+            "speedup_cpu": c_loop / med(c for _, c in base), "same_model_file": same_as_base},
         "stages_cpu_wall_s": stages, "load_average": load,
         "hamiltonian": model["hamiltonian"], "status": model.get("status")}, indent=2))
     print(f"written {out / 'cli.json'}")
