@@ -119,3 +119,15 @@ def test_polynomial_damaged_record_is_rebuilt(cache):
     assert Library.polynomial(["theta", "phi"], FEATURES, 2).names == built.names
     with pytest.raises(ValueError, match="feature"):      # bad input is still checked
         Library.polynomial(["theta", "phi"], "cos(theta),foo", 2)
+
+
+def test_cached_library_index_parses_only_the_term(cache, monkeypatch):
+    Library.polynomial(["theta", "phi"], FEATURES, 3)
+    lib = Library.polynomial(["theta", "phi"], FEATURES, 3)
+    parsed = []
+    original = type(lib.coords).parse
+    monkeypatch.setattr(type(lib.coords), "parse",
+                        lambda self, t, **kw: parsed.append(t) or original(self, t, **kw))
+    assert lib.names[lib.index("phi")] == "phi"
+    assert lib.names[lib.index("cos(theta)*theta_dot")] == "theta_dot*cos(theta)"
+    assert len(parsed) == 4          # the two queries and the two terms found, nothing else

@@ -153,6 +153,9 @@ class Library:
     def index(self, term, what: str = "term") -> int:
         """Position of ``term`` (string or sympy) in the library; ``ValueError`` if absent."""
         e = self.coords.parse(term, what=what)
+        j = self._name_index.get(str(e))       # by name first: parses no other term
+        if j is not None and self.exprs[j] == e:
+            return j
         j = self._index.get(e)
         if j is None:
             j = self._expanded_index.get(_expanded(e))
@@ -174,6 +177,10 @@ class Library:
                 continue
             xi[self.index(term, what=f"term of {what}")] += float(c)
         return xi
+
+    @cached_property
+    def _name_index(self) -> dict:
+        return {n: j for j, n in enumerate(self.names)}
 
     @cached_property
     def _index(self) -> dict:
