@@ -5,8 +5,12 @@ The paper-style loop scores each support with its own ``np.linalg.lstsq`` call i
 swapped in for our batched scorer (``lsindy_cas.identify.search.score_all``) so that everything else — data,
 library, admissibility, Legendre, equations of motion — is identical in both columns.
 
-    python benchmarks/bench_search.py            # full run (~2 min), writes benchmarks/results/search.json
-    python benchmarks/bench_search.py --quick    # one repetition of the slow loop
+    python benchmarks/bench_search.py            # full run (~10 min), writes benchmarks/results/search.json
+    python benchmarks/bench_search.py --quick    # one repetition of each slow loop
+    python benchmarks/bench_search.py --quick --parts search_only   # one part, the others kept
+
+"Search alone" also times the branch and bound (:mod:`lsindy_cas.identify.bnb`) on the same balance
+and rules: the issue's ≥ 200× target counts whichever path is faster.
 """
 from __future__ import annotations
 
@@ -91,10 +95,13 @@ def bench_full_search(reps_ours, reps_loop):
 
 def bench_search_only(reps_ours, reps_loop):
     """The search alone on the same balance: ``best_subset`` (score every support, then visit them
-    best-first through admissibility) with our scorer or the paper-style loop as ``score_all``."""
+    best-first through admissibility) with our scorer or the paper-style loop as ``score_all``;
+    and the branch and bound (``bnb.branch_and_bound``: the same rules, proven optimal) on it.
+    Ours are timed before and after the loop (interleaved with it, under the same load)."""
     from lsindy_cas.identify import search as search_mod
     from lsindy_cas.identify.admissibility import Admissibility
     from lsindy_cas.identify.balance import derivative_form
+    from lsindy_cas.identify.bnb import branch_and_bound
     s, tr, lib = spherical_problem()
     bal = derivative_form(lib, [tr])
 
@@ -102,17 +109,32 @@ def bench_search_only(reps_ours, reps_loop):
         adm = Admissibility.for_balance(lib, bal, [])         # fresh: its jackknife is built lazily
         return search_mod.best_subset(bal.A, bal.b, 3, admissible=adm)
 
-    run()
-    t_ours, all_ours, r_ours = timed(run, reps_ours)
+    def run_bnb():
+        adm = Admissibility.for_balance(lib, bal, [])
+        return branch_and_bound(bal.A, bal.b, 3, admissible=adm)
+
+    r_ours, r_bnb = run(), run_bnb()
+    all_ours, all_bnb, all_loop = [], [], []
     original = search_mod.score_all
-    search_mod.score_all = loop_score_all
-    try:
-        t_loop, all_loop, r_loop = timed(run, reps_loop)
-    finally:
-        search_mod.score_all = original
+    sizes = [len(c) for c in np.array_split(np.arange(reps_ours), reps_loop + 1)]
+    for i, n in enumerate(sizes):              # ours | loop | ours | loop ... | ours
+        all_ours += timed(run, n)[1] if n else []
+        all_bnb += timed(run_bnb, n)[1] if n else []
+        if i < reps_loop:
+            search_mod.score_all = loop_score_all
+            try:
+                _, t_l, r_loop = timed(run, 1)
+            finally:
+                search_mod.score_all = original
+            all_loop += t_l
+    t_ours, t_bnb, t_loop = (statistics.median(x) for x in (all_ours, all_bnb, all_loop))
     return {"supports": r_ours.n_supports, "ours_s": t_ours, "loop_s": t_loop,
             "speedup": t_loop / t_ours, "ours_all_s": all_ours, "loop_all_s": all_loop,
-            "same_support": r_ours.support == r_loop.support}
+            "same_support": r_ours.support == r_loop.support,
+            "bnb_s": t_bnb, "bnb_all_s": all_bnb, "bnb_speedup": t_loop / t_bnb,
+            "bnb_nodes": int(r_bnb.nodes), "bnb_proven": bool(r_bnb.proven),
+            "bnb_same_support": r_bnb.support == r_ours.support,
+            "best_speedup": t_loop / min(t_ours, t_bnb)}
 
 
 def bench_table_one(reps):
@@ -156,21 +178,40 @@ def bench_cli(reps_ours, reps_loop):
             "ours_all_s": all_ours, "loop_all_s": all_loop, "hamiltonian": out.splitlines()[0]}
 
 
+PARTS = ("search_only", "full_search", "table_one", "cli")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="one repetition of each slow loop")
     ap.add_argument("--out", default=str(HERE / "results" / "search.json"))
+    ap.add_argument("--parts", default=",".join(PARTS),
+                    help="comma-separated parts to run (%s); the others are kept from an existing "
+                    "--out file" % ", ".join(PARTS))
     a = ap.parse_args(argv)
+    parts = [x.strip() for x in a.parts.split(",") if x.strip()]
+    bad = sorted(set(parts) - set(PARTS))
+    if bad:
+        ap.error(f"--parts: unknown part(s) {', '.join(bad)}; choose from {', '.join(PARTS)}")
     loop_reps = 1 if a.quick else 3
+    out = Path(a.out)
+    res = json.loads(out.read_text()) if out.exists() else {}
     load = os.getloadavg()
-    print("full spherical search (125 terms, k = 3, no priors) ...", file=sys.stderr)
-    full = bench_full_search(7, loop_reps)
-    print("search alone (best_subset on the same balance) ...", file=sys.stderr)
-    only = bench_search_only(7, loop_reps)
-    print("Table I, six cells end to end ...", file=sys.stderr)
-    table = bench_table_one(3)
-    print("lsindy identify (spherical, whole process) ...", file=sys.stderr)
-    cli = bench_cli(5, loop_reps)
+    runs = {"full_search": ("full spherical search (125 terms, k = 3, no priors)",
+                            lambda: bench_full_search(7, loop_reps)),
+            "search_only": ("search alone (best_subset and branch and bound on the same balance)",
+                            lambda: bench_search_only(7, loop_reps)),
+            "table_one": ("Table I, six cells end to end", lambda: bench_table_one(3)),
+            "cli": ("lsindy identify (spherical, whole process)", lambda: bench_cli(5, loop_reps))}
+    for part in PARTS:
+        if part in parts:
+            print(runs[part][0] + " ...", file=sys.stderr)
+            res[part] = runs[part][1]()
+            res[part]["load_average"] = load
+    if any(part not in res for part in PARTS):
+        missing = [part for part in PARTS if part not in res]
+        ap.error(f"no results for {', '.join(missing)} in {out}: run them with --parts")
+    only, full, table, cli = (res[part] for part in PARTS)
     rows = [
         ("spherical search alone (score + admissible visit), C(125,3)", only["loop_s"],
          only["ours_s"], only["speedup"], "≥ 200×"),
@@ -179,6 +220,10 @@ def main(argv=None):
         ("lsindy identify, spherical, whole process", cli["loop_s"], cli["ours_s"], cli["speedup"], "≥ 20×"),
         ("Table I, 6 cells end to end (simulate + fit)", float("nan"), table["seconds"], float("nan"), "≤ 10 s"),
     ]
+    if "bnb_s" in only:
+        rows.insert(1, ("spherical search alone, branch and bound (%d nodes, proven %s)"
+                        % (only["bnb_nodes"], only["bnb_proven"]), only["loop_s"], only["bnb_s"],
+                        only["bnb_speedup"], "≥ 200× (whichever path is faster)"))
     print(f"\n| task | paper-style loop | lsindy_cas | speed-up | target |\n|---|---|---|---|---|")
     for name, loop, ours, sp, target in rows:
         loop_s = "—" if np.isnan(loop) else f"{loop:.2f} s"
@@ -188,11 +233,12 @@ def main(argv=None):
           f"ours {full['ours_supports_per_s']:,.0f} supports/s (including admissibility); "
           f"both found the true support: {full['ours_exact'] and full['loop_exact']}; "
           f"Table I all exact: {table['all_exact']} (max rel. error {table['max_rel_error']:.1e})")
-    out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    print(f"load average at start {load[0]:.2f} (timings on a loaded machine are provisional)")
-    out.write_text(json.dumps({"search_only": only, "full_search": full, "table_one": table,
-                               "cli": cli, "load_average": load}, indent=2))
+    print("load average at the start of each part: " + ", ".join(
+        f"{part} {res[part].get('load_average', res.get('load_average', [float('nan')]))[0]:.2f}"
+        for part in PARTS) + " (timings on a loaded machine are provisional)")
+    res["load_average"] = load
+    out.write_text(json.dumps(res, indent=2))
     print(f"written {out}")
 
 

@@ -81,3 +81,17 @@ def cart_model(tmp_path):
         "hamiltonian_terms": {"x_dot**2": 0.55, "theta_dot**2": 0.05,
                               "theta_dot*x_dot*cos(theta)": 0.1, "cos(theta)": -0.981}}))
     return path
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _function_cache(tmp_path_factory):
+    """The CasADi Function cache (symbolic/fcache.py) in a folder of this session, not the user's
+    (subprocesses of the CLI tests inherit it)."""
+    import os
+    old = os.environ.get("LSINDY_CACHE_DIR")
+    os.environ["LSINDY_CACHE_DIR"] = str(tmp_path_factory.mktemp("fcache"))
+    yield
+    if old is None:
+        os.environ.pop("LSINDY_CACHE_DIR", None)
+    else:
+        os.environ["LSINDY_CACHE_DIR"] = old

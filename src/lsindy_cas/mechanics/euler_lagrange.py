@@ -94,7 +94,10 @@ class EulerLagrange:
         M, F = self.sympy_equations()
         qdd = sp.Matrix([sp.Symbol(n + "_ddot", real=True) for n in self.coords.names])
         lhs = M * qdd
-        return [sp.Eq(sp.expand(lhs[i]), sp.expand(F[i])) for i in range(self.coords.n)]
+        # evaluate=False: the rows as derived (deciding whether the two sides are identical,
+        # which they never are for a fitted model, cost a third of the derivation)
+        return [sp.Eq(sp.expand(lhs[i]), sp.expand(F[i]), evaluate=False)
+                for i in range(self.coords.n)]
 
 
 def simulate_ode(ode: ca.Function, x0, t_eval, u=None, n_coords: int | None = None,

@@ -8,6 +8,7 @@ quantity is evaluated for all samples at once through ``casadi.Function.map``.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from functools import cached_property
 
 import casadi as ca
@@ -15,6 +16,7 @@ import numpy as np
 import sympy as sp
 
 from .._validate import check_int
+from . import fcache
 from .coords import Coordinates
 
 _MAP = 512        # samples per evaluation of the mapped library functions
@@ -80,6 +82,14 @@ class Library:
         c = coords if isinstance(coords, Coordinates) else Coordinates(coords)
         if isinstance(features, str):
             features = _split_top_level(features)
+        # the terms of a definition seen before: their names from the disk cache (.fcache)
+        parts = [c.names, [f if isinstance(f, str) else None for f in features], int(degree)]
+        cached = None if None in parts[1] else fcache.read("polynomial", parts)
+        if cached is not None and cls is Library:
+            try:
+                return cls._from_names(c, cached["names"], cached["features"], int(degree))
+            except (KeyError, TypeError, ValueError):
+                pass                                   # a damaged record: build it again
         feats = [c.parse(f, what=f"feature {f!r}") for f in features]
         if not feats:
             raise ValueError("features must list at least one expression")
@@ -89,6 +99,22 @@ class Library:
                 terms.append(sp.Mul(*combo))
         lib = cls(c, terms)
         lib.spec = {"kind": "polynomial", "features": [str(f) for f in feats], "degree": int(degree)}
+        # cached only if every name parses back to its term (what a cached library relies on)
+        if None not in parts[1] and all(c.parse(n) == e for n, e in zip(lib.names, lib.exprs)):
+            fcache.write("polynomial", parts, {"names": lib.names,
+                                               "features": lib.spec["features"]})
+        return lib
+
+    @classmethod
+    def _from_names(cls, coords: Coordinates, names, features, degree: int) -> "Library":
+        """A polynomial library from its cached term names: each sympy term is parsed from its
+        name when first used (:class:`_LazyTerms`); the names were checked when cached."""
+        if not names or not all(isinstance(n, str) for n in names) or len(set(names)) != len(names):
+            raise ValueError("bad cached library record")
+        lib = cls.__new__(cls)
+        lib.coords, lib.names = coords, list(names)
+        lib.exprs = _LazyTerms(coords, lib.names)
+        lib.spec = {"kind": "polynomial", "features": list(features), "degree": degree}
         return lib
 
     def __add__(self, other: "Library") -> "Library":
@@ -127,6 +153,9 @@ class Library:
     def index(self, term, what: str = "term") -> int:
         """Position of ``term`` (string or sympy) in the library; ``ValueError`` if absent."""
         e = self.coords.parse(term, what=what)
+        j = self._name_index.get(str(e))       # by name first: parses no other term
+        if j is not None and self.exprs[j] == e:
+            return j
         j = self._index.get(e)
         if j is None:
             j = self._expanded_index.get(_expanded(e))
@@ -148,6 +177,15 @@ class Library:
                 continue
             xi[self.index(term, what=f"term of {what}")] += float(c)
         return xi
+
+    @cached_property
+    def _name_index(self) -> dict:
+        return {n: j for j, n in enumerate(self.names)}
+
+    @cached_property
+    def _index(self) -> dict:
+        """Term -> position (set by ``__init__``; built here for a library from cached names)."""
+        return {e: j for j, e in enumerate(self.exprs)}
 
     @cached_property
     def _expanded_index(self) -> dict:
@@ -175,6 +213,22 @@ class Library:
     # ------------------------------------------------------------------ numeric
     @cached_property
     def _functions(self) -> dict:
+        """The CasADi Functions of Θ and its derivatives: from the disk cache
+        (:mod:`.fcache`) when this library was built before, else built and cached."""
+        n, p = self.coords.n, len(self)
+        sizes = {"theta": p, "gamma": p, "grad": 2 * n * p, "dqd": n * p, "hess": n * n * p}
+
+        def ok(funcs):
+            return all(funcs[k].n_in() == (2 if k == "gamma" else 1) and funcs[k].n_out() == 1
+                       and funcs[k].size1_in(0) == 2 * n and funcs[k].nnz_out(0) == sizes[k]
+                       for k in sizes)
+        funcs = fcache.load(self.coords.names, self.names, ok)
+        if funcs is None:
+            funcs = self._build_functions()
+            fcache.save(self.coords.names, self.names, funcs)
+        return funcs
+
+    def _build_functions(self) -> dict:
         c = self.coords
         x, xd = c.x, ca.SX.sym("xd", 2 * c.n)
         theta = self.sx.T                                     # (p, 1)
@@ -260,6 +314,31 @@ class Library:
         X = self._states(X)
         n, p = self.coords.n, len(self)
         return self._eval("hess", X).reshape(len(X), n, n, p)
+
+
+class _LazyTerms(Sequence):
+    """The sympy terms of a library known by their names, each parsed when first used (a command
+    that scores every support only ever reads the few terms of the winner)."""
+
+    def __init__(self, coords: Coordinates, names):
+        self._coords, self._names, self._done = coords, names, {}
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __getitem__(self, j):
+        if isinstance(j, slice):
+            return [self[i] for i in range(*j.indices(len(self)))]
+        j = range(len(self))[j]                        # negative indices, IndexError
+        if j not in self._done:
+            self._done[j] = self._coords.parse(self._names[j], what="library term")
+        return self._done[j]
+
+    def __add__(self, other):
+        return list(self) + list(other)
+
+    def __radd__(self, other):
+        return list(other) + list(self)
 
 
 def _split_top_level(text: str) -> list[str]:
