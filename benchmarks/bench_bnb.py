@@ -12,8 +12,8 @@ Data (no prior terms anywhere):
 
 Systems and k: spherical (125 terms, k = 3), cart-pendulum (55, 4), double pendulum (209, 6),
 elastic pendulum (r, θ; features cos θ, sin θ, r, ṙ, θ̇, degree 4: 125 terms, k = 5; also with
-automatic k).  Orders: the library's ("library"), the screening order ("screen"), both searched
-in turn sharing the incumbent ("auto", the default).
+automatic k).  Orders: the library's ("library"), the stepwise screening order ("screen"), the
+basis-pursuit order ("l1"), all searched in turn sharing the incumbent ("auto", the default).
 
     python benchmarks/bench_bnb.py --out DIR [--quick] [--time-limit S]
 
@@ -129,8 +129,9 @@ def exact_cases(args, limit, rows):
         if small:
             res, sec = timed(lambda: best_subset(bal.A, bal.b, k, admissible=adm))
             rows.append(row(name, data, "exhaustive", res, sec, truth, n_all, rc))
-        for screen in ("auto", False, True) if small or protocol == "rich" else ("auto",):
-            label = {"auto": "bnb auto", False: "bnb library order", True: "bnb screen order"}[screen]
+        for screen in ("auto", False, True, "l1") if small or protocol == "rich" else ("auto",):
+            label = {"auto": "bnb auto", False: "bnb library order", True: "bnb screen order",
+                     "l1": "bnb l1 order"}[screen]
             res, sec = timed(lambda: branch_and_bound(bal.A, bal.b, k, admissible=adm, screen=screen,
                                                       time_limit=limit))
             rows.append(row(name, data, f"{label} ({limit:g} s)", res, sec, truth, n_all, rc))

@@ -207,3 +207,50 @@ def test_structure_of_an_admissibility():
     assert {names[j] for j in required[0]} == {"x_dot**2"}
     assert {names[j] for j in required[1]} == {"y_dot**2"}
     assert structure_of(lambda S, c: (True, ""), len(lib)) is None
+
+
+def test_state_sets_are_exact_consequences_of_the_kinetic_rule():
+    """At a state at rest only the q̇_i²·f(q) terms give M_ii ≠ 0: every support missing such a
+    set is rejected by the positive-definiteness rule, so pruning with the sets loses nothing."""
+    from lsindy_cas import Library
+    from lsindy_cas.identify.admissibility import Admissibility
+    from lsindy_cas.identify.bnb import structure_of
+    lib = Library.polynomial(["x", "y"], "x,y,x_dot,y_dot", 4)
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(20, 4))
+    X[0, 2:] = 0.0                                    # one state at rest
+    adm = Admissibility(lib, X, [], np.ones(len(lib)))
+    banned, required = structure_of(adm, len(lib))
+    names = lib.names
+    at_rest = [set(names[j] for j in r) for r in required[2:]]
+    assert len(at_rest) == 2
+    assert "x_dot**2*y_dot**2" in {names[j] for j in required[0]}      # per coordinate: allowed
+    assert all("x_dot**2*y_dot**2" not in r for r in at_rest)          # at rest: no M_ii from it
+    assert {"x_dot**2", "x**2*x_dot**2"} <= at_rest[0] | at_rest[1]
+    # brute force: supports (with positive coefficients) missing a set fail the rule
+    for _ in range(300):
+        S = tuple(sorted(rng.choice([j for j in range(len(lib)) if j not in banned], 3,
+                                    replace=False).tolist()))
+        coef = np.zeros(len(lib))
+        coef[list(S)] = rng.uniform(0.5, 2.0, 3)
+        if not all(set(S) & set(r.tolist()) for r in required):
+            assert not adm.physical(S, coef)[0]
+
+
+def test_l1_order_puts_a_sparse_exact_fit_first(rng):
+    """Correlated columns, exact 4-term fit: basis pursuit puts the four true terms first (forward
+    stepwise does not: a single correlated column fits b better than any true one)."""
+    from lsindy_cas.identify.screening import l1_order
+    A = rng.normal(size=(200, 30))
+    truth = [4, 11, 19, 27]
+    b = A[:, truth] @ np.array([1.0, -1.0, 2.0, 1.5])
+    A[:, 0] = b / np.linalg.norm(b) + 0.02 * rng.normal(size=200)    # fits b well alone, not exactly
+    from lsindy_cas.identify.fitting import normal_equations
+    G, c = normal_equations(A, b)
+    assert screening_order(G, c, [], range(30), 4)[0] == 0               # stepwise takes the decoy
+    order = l1_order(A, b, range(30))
+    assert set(order[:4].tolist()) == set(truth)
+    assert sorted(order.tolist()) == list(range(30))
+    assert l1_order(A, None, range(30)) is None
+    forced = l1_order(A, b, [j for j in range(30) if j != 4], forced=[4])
+    assert set(forced[:3].tolist()) == {11, 19, 27}

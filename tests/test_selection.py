@@ -122,14 +122,17 @@ def test_fixed_k_beyond_the_exhaustive_budget_uses_branch_and_bound(rng, monkeyp
 
 def test_automatic_k_without_a_smaller_model_runs_branch_and_bound(rng, monkeypatch):
     """No budget even for k = 1 and no time limit: branch and bound (AUTO_TIME_LIMIT) starts the
-    scan, the larger k extend it (beam, marked not proven); same answer as the exhaustive scan."""
+    scan, the larger k extend it (beam, marked not proven), and the chosen k is searched again by
+    branch and bound for its certificate; same answer as the exhaustive scan."""
     bal = _synthetic(rng)
     full = select(bal, [])
     monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
     auto = select(bal, [])
     assert auto.support == full.support and auto.k == full.k
     assert auto.steps[0].search.method == "bnb" and auto.steps[0].search.proven
-    assert all(st.search.method == "beam" and not st.search.proven for st in auto.steps[1:])
+    assert auto.search.method == "bnb" and auto.search.proven and auto.k > auto.steps[0].k
+    others = [st for st in auto.steps[1:] if st.k != auto.k]
+    assert others and all(st.search.method == "beam" and not st.search.proven for st in others)
 
 
 def test_select_bad_arguments(rng):

@@ -48,7 +48,8 @@ import numpy as np
 from .._validate import check_real
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
-from .screening import _Basis, screening_order, structure_of
+from .bnb_drive import drive
+from .screening import _Basis, l1_order, screening_order, structure_of
 from .search import DEGENERACY_TOL, Candidate, SearchResult, _score_chunks
 
 __all__ = ["branch_and_bound", "screening_order", "structure_of", "SCORE_RESOLUTION", "SKIP_TOL"]
@@ -60,7 +61,6 @@ SCORE_RESOLUTION = 1e-12
 # such a column adds nothing to the span of a superset (its contribution is < 1e-18 of ‖b‖²).
 SKIP_TOL = 1e-13
 _POOL = 2000               # scored leaves kept as runners-up (best first)
-_REPORT_EVERY = 0.25       # seconds between progress reports
 _MAX_OPEN = 2_000_000      # open nodes kept (memory, ~0.5 GB): beyond, stop as not proven
 
 
@@ -261,10 +261,16 @@ class _Search:
         self.pool_S, self.pool_s, self.pool_n = [S[keep]], [s[keep]], len(keep)
 
     # ----------------------------------------------------------------- search
-    def start(self, screen: bool) -> "_Search":
-        """This search's tree over the free terms in library order or the screening order."""
-        self.order = (screening_order(self.G, self.c, self.forced, self.free, self.k, self.GD)
-                      if screen else np.array(self.free, dtype=np.int64))
+    def start(self, screen) -> "_Search":
+        """This search's tree over the free terms in library order (False), the screening order
+        (True) or the basis-pursuit order ("l1", driven data; None when it cannot be had)."""
+        if screen == "l1":
+            self.order = l1_order(self.Af, self.bf, self.free, self.forced)
+            if self.order is None:
+                return None
+        else:
+            self.order = (screening_order(self.G, self.c, self.forced, self.free, self.k, self.GD)
+                          if screen else np.array(self.free, dtype=np.int64))
         oc = self.cov[:, self.order]
         self.suffix_cov = np.zeros((len(oc), len(self.order) + 1), dtype=bool)
         self.suffix_cov[:, :-1] = np.flip(np.logical_or.accumulate(np.flip(oc, 1), axis=1), 1)
@@ -275,7 +281,10 @@ class _Search:
         """Expand until the clock passes ``until``: "done" (tree exhausted), "open" or "full"."""
         heap = self.heap
         while heap or self.queue:
-            if self.queue and (not heap or self.queue[0][0] <= heap[0][0][0]):
+            # a queued leaf is examined when no open node's bound is below it (both at round-off
+            # count as 0, as in the nodes' keys)
+            if self.queue and (not heap or (self.queue[0][0] if self.queue[0][0] > self.tol else 0.0)
+                               <= heap[0][0][0]):
                 score, _, S = heapq.heappop(self.queue)
                 if score >= self.incumbent - self.tol:
                     self.lower_pruned = min(self.lower_pruned, score)
@@ -309,47 +318,6 @@ class _Search:
                    + ([self.current.bound] if self.current is not None else []))
 
 
-def _drive(trees, time_limit, progress):
-    """Advance the trees in turn (slices of _REPORT_EVERY s), sharing the incumbent.
-
-    Every tree covers all supports, so the first one exhausted proves the incumbent; each tree's
-    lower bound holds for every support it has not examined, so the largest one bounds the gap.
-    Returns (lower, proven, seconds, interrupted).
-    """
-    t0 = time.monotonic()
-    deadline = np.inf if time_limit is None else t0 + time_limit
-    state, interrupted = "open", False
-    try:
-        while state == "open":
-            for s in trees:
-                best = min(trees, key=lambda t: t.incumbent)
-                s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
-                state = s.advance(min(deadline, time.monotonic() + _REPORT_EVERY))
-                if progress is not None:
-                    _report(progress, trees, time.monotonic() - t0)
-                if state != "open" or time.monotonic() > deadline:
-                    break
-            if time.monotonic() > deadline and state == "open":
-                state = "time"
-    except KeyboardInterrupt:
-        interrupted = True
-    best = min(trees, key=lambda t: t.incumbent)
-    for s in trees:
-        s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
-    lower = max(s.lower() for s in trees)
-    return lower, state == "done" and not interrupted, time.monotonic() - t0, interrupted
-
-
-def _report(progress, trees, elapsed):
-    inc = min(t.incumbent for t in trees)
-    lower = max(t.lower() for t in trees)
-    gap = max(0.0, inc - lower) if np.isfinite(inc) else float("inf")
-    progress(sum(t.nodes for t in trees), 0)
-    status = getattr(progress, "status", None)
-    if status is not None:
-        status(f"gap {gap:.2e}, best {inc:.3e}, {elapsed:.1f} s")
-
-
 def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                      admissible: Callable | None = None, D: np.ndarray | None = None,
                      scale_system: tuple | None = None, time_limit: float | None = None,
@@ -372,12 +340,13 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     progress : callable ``(n_done, n_total)``, optional
         Called with (nodes expanded, 0) a few times a second; its ``status(text)`` method, if it has
         one, receives the current gap, best score and elapsed time.
-    screen : {"auto", True, False}
+    screen : {"auto", True, False, "l1"}
         The order of the free terms: the library's (False; a polynomial library lists low degrees
-        first), :func:`screening_order` (True), or both trees searched in turn sharing the
-        incumbent, the first one exhausted proving it ("auto", default).  The answer is the same;
-        which order finds the winner first depends on the data (benchmarks/bench_bnb.py: the
-        library order on the paper's 1 s runs, the screening order on rich data).
+        first), :func:`screening_order` (True), the basis-pursuit order (:func:`l1_order`,
+        "l1", driven data), or all of them searched in turn sharing the incumbent, the first one
+        exhausted proving it ("auto", default).  The answer is the same; which order finds the
+        winner first depends on the data (benchmarks/bench_bnb.py: the library order on the
+        paper's 1 s runs, the basis-pursuit order on rich data, where it puts the true terms first).
     structure : (banned, required), optional
         Terms no admissible support has and sets each support must meet (default
         :func:`structure_of` ``(admissible)``: found when ``admissible`` is an
@@ -411,9 +380,15 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     if structure is None:
         structure = structure_of(admissible, p)
     s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
-    trees = ([s.start(False), s.clone().start(True)] if screen == "auto"
-             else [s.start(bool(screen))])
-    lower, proven, seconds, interrupted = _drive(trees, time_limit, progress)
+    if screen == "auto":
+        trees = [s.start(False)] + [t for t in (s.clone().start("l1") if b is not None else None,
+                                                s.clone().start(True)) if t is not None]
+    else:
+        trees = [s.start(screen if screen == "l1" else bool(screen))]
+        if trees[0] is None:
+            raise ValueError("the basis-pursuit order needs driven data (b) and a solvable "
+                             "linear programme")
+    lower, proven, seconds, interrupted = drive(trees, time_limit, progress)
     for t in trees[1:]:
         s.pool_S += t.pool_S
         s.pool_s += t.pool_s

@@ -12,7 +12,7 @@ import numpy as np
 
 from .search import DEGENERACY_TOL
 
-__all__ = ["screening_order", "structure_of"]
+__all__ = ["screening_order", "structure_of", "l1_order"]
 
 
 def structure_of(admissible, p: int):
@@ -20,10 +20,12 @@ def structure_of(admissible, p: int):
 
     Returns ``(banned, required)`` or None when ``admissible`` is not such an object: ``banned``
     the terms no admissible support contains (excluded terms, terms linear in the velocities),
-    ``required`` one index array per coordinate i of the terms with ∂²θ_j/∂q̇_i² ≠ 0 at some
-    checked state — a support without one has M_ii ≡ 0 there, so its kinetic part is not positive
-    definite.  Both are exact consequences of the rules, so pruning with them loses no admissible
-    support.
+    ``required`` index arrays of terms a support must meet: first, per coordinate i, the terms
+    with ∂²θ_j/∂q̇_i² ≠ 0 at some checked state; then, per checked state s and coordinate i, the
+    terms with ∂²θ_j/∂q̇_i² ≠ 0 *at s* (only the minimal such sets, e.g. at a state at rest only
+    the q̇_i²·f(q) terms) — a support missing one has M_ii(s) = 0, so its kinetic part is not
+    positive definite at s and the rule rejects it.  Both are exact consequences of the rules, so
+    pruning with them loses no admissible support.
     """
     lib, hess = getattr(admissible, "library", None), getattr(admissible, "hess", None)
     if lib is None or hess is None or len(lib) != p:
@@ -32,7 +34,21 @@ def structure_of(admissible, p: int):
     banned = set(int(j) for j in getattr(admissible, "excluded", ())) | set(velocity_linear(lib, range(p)))
     n = hess.shape[1]
     required = [np.flatnonzero(np.any(hess[:, i, i, :] != 0, axis=0)) for i in range(n)]
-    return sorted(banned), required
+    return sorted(banned), required + _state_sets(hess, banned, required)
+
+
+def _state_sets(hess, banned, coordinate_sets) -> list:
+    """The minimal sets {j : ∂²θ_j/∂q̇_i²(x_s) ≠ 0} over states s and coordinates i (banned terms
+    left out: no admissible support has them), without the per-coordinate sets already listed."""
+    sets = set()
+    keep = np.ones(hess.shape[-1], dtype=bool)
+    keep[list(banned)] = False
+    for i in range(hess.shape[1]):
+        nz = (hess[:, i, i, :] != 0) & keep
+        sets |= {frozenset(np.flatnonzero(row).tolist()) for row in np.unique(nz, axis=0)}
+    known = {frozenset((set(r.tolist()) - set(banned))) for r in coordinate_sets}
+    minimal = [a for a in sets if not any(b < a for b in sets)]
+    return [np.array(sorted(a), dtype=np.int64) for a in sorted(minimal, key=len) if a not in known]
 
 
 class _Basis:
@@ -116,3 +132,39 @@ def screening_order(G: np.ndarray, c: np.ndarray | None, forced, free, k: int,
         single = -np.abs(G[np.ix_(free, free)] - np.eye(len(free))).max(axis=1)
     rest = [free[i] for i in np.argsort(-single, kind="stable") if free[i] not in chosen]
     return np.array(chosen + rest, dtype=np.int64)
+
+
+def l1_order(A: np.ndarray, b: np.ndarray | None, free, forced=(),
+             rtol: float = 1e-10) -> np.ndarray | None:
+    """The free terms by the size of their coefficient in the least-ℓ1 exact fit (basis pursuit).
+
+    On the column-normalised columns M = U S Vᵀ of the forced and free terms (directions with
+    s > ``rtol``·s_max kept, so the system is consistent), x = argmin Σ_free |x_j| subject to
+    S Vᵀ x = Uᵀ b (forced terms free of charge), a linear programme: on clean data with enough rows
+    it recovers a sparse exact fit even when the terms are strongly correlated (where forward
+    stepwise picks what fits best alone); on noisy data it is the least-ℓ1 least-squares fit.
+    Returns the free terms, largest |x_j| first, or None for passive data or when the programme
+    fails (the caller keeps its other orders).
+    """
+    free = np.asarray(free, dtype=np.int64)
+    if b is None or not len(free):
+        return None
+    from scipy.optimize import linprog        # lazy: scipy.optimize is slow to import
+    cols = np.concatenate([np.asarray(forced, dtype=np.int64), free])
+    M = A[:, cols]
+    M = M / np.maximum(np.linalg.norm(M, axis=0), 1e-300)
+    U, s, Vt = np.linalg.svd(M, full_matrices=False)
+    r = int(np.sum(s > rtol * s[0])) if len(s) and s[0] > 0 else 0
+    if r == 0:
+        return None
+    Ar = s[:r, None] * Vt[:r]
+    y = U[:, :r].T @ (b / max(np.linalg.norm(b), 1e-300))
+    n = len(cols)
+    cost = np.ones(n)
+    cost[:n - len(free)] = 0.0
+    res = linprog(np.concatenate([cost, cost]), A_eq=np.hstack([Ar, -Ar]), b_eq=y,
+                  bounds=(0, None), method="highs")
+    if res.status != 0 or res.x is None:
+        return None
+    x = np.abs(res.x[:n] - res.x[n:])[n - len(free):]
+    return free[np.argsort(-x, kind="stable")]

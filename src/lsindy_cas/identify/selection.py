@@ -50,7 +50,7 @@ import numpy as np
 
 from .balance import EnergyBalance
 from .fitting import null_vector
-from .bnb import branch_and_bound, structure_of
+from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 
@@ -344,7 +344,30 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
                          "the input, add runs or check the library (" + "; ".join(reasons[:3]) + ")")
     if fits is not None and fits.k < best.k:
         best = fits
+    if best.search is not None and best.search.method == "beam":
+        best = _certify(bal, best, steps, forced, cols, admissible, scale_system, progress, noise,
+                        folds, time_limit if time_limit is not None else deadline - time.monotonic())
     return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded)
+
+
+def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress, noise, folds,
+             time_limit) -> Step:
+    """The chosen k came from the beam (no certificate): search it again by branch and bound
+    (``time_limit`` seconds; skipped below one) and keep its answer — the same support, now with a
+    certificate, or a better-scoring admissible one the beam missed; the beam's when it finds none."""
+    if time_limit < 1.0:
+        return step
+    try:
+        res, _ = _search_k(bal, step.k, forced, cols, admissible, scale_system, progress, None,
+                           time_limit)
+    except (ValueError, KeyboardInterrupt):
+        return step
+    if res.score > step.score + SCORE_RESOLUTION:
+        return step
+    cv, per = cv_error(bal, res.support, folds)
+    new = Step(step.k, res.support, res.coef, res.score, cv, per, res, True, _chi(bal, res, noise))
+    steps[steps.index(step)] = new
+    return new
 
 
 def _chi(bal, res, noise) -> float:

@@ -1,0 +1,56 @@
+"""Driving the trees of a branch and bound in turn: time slices, the shared incumbent, progress.
+
+Every tree of :func:`lsindy_cas.identify.bnb.branch_and_bound` covers all supports (in its own
+order of the terms), so the first one exhausted proves the incumbent; each tree's lower bound holds
+for every support it has not examined, so the largest one bounds the gap.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+__all__ = ["drive"]
+
+REPORT_EVERY = 0.25       # seconds between progress reports (and between trees)
+
+
+def drive(trees, time_limit, progress):
+    """Advance the trees in turn (slices of REPORT_EVERY s), sharing the incumbent.
+
+    Every tree covers all supports, so the first one exhausted proves the incumbent; each tree's
+    lower bound holds for every support it has not examined, so the largest one bounds the gap.
+    Returns (lower, proven, seconds, interrupted).
+    """
+    t0 = time.monotonic()
+    deadline = np.inf if time_limit is None else t0 + time_limit
+    state, interrupted = "open", False
+    try:
+        while state == "open":
+            for s in trees:
+                best = min(trees, key=lambda t: t.incumbent)
+                s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
+                state = s.advance(min(deadline, time.monotonic() + REPORT_EVERY))
+                if progress is not None:
+                    _report(progress, trees, time.monotonic() - t0)
+                if state != "open" or time.monotonic() > deadline:
+                    break
+            if time.monotonic() > deadline and state == "open":
+                state = "time"
+    except KeyboardInterrupt:
+        interrupted = True
+    best = min(trees, key=lambda t: t.incumbent)
+    for s in trees:
+        s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
+    lower = max(s.lower() for s in trees)
+    return lower, state == "done" and not interrupted, time.monotonic() - t0, interrupted
+
+
+def _report(progress, trees, elapsed):
+    inc = min(t.incumbent for t in trees)
+    lower = max(t.lower() for t in trees)
+    gap = max(0.0, inc - lower) if np.isfinite(inc) else float("inf")
+    progress(sum(t.nodes for t in trees), 0)
+    status = getattr(progress, "status", None)
+    if status is not None:
+        status(f"gap {gap:.2e}, best {inc:.3e}, {elapsed:.1f} s")
