@@ -8,9 +8,9 @@ the first interval's relaxed decision into one admissible level: by enumerating 
 sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas.control.lookahead`, the
 default), by sum-up rounding with the rounding error carried across steps, or by plain rounding
 (:mod:`lsindy_cas.control.rounding`).  A failed or non-converged solve falls back to the shifted
-previous plan and is counted in :attr:`DiscreteInputMPC.stats`; the next step continues the SQP
-from the failed iterate (``recovery="continue"``), so that a step needs at most ``max_iter`` SQP
-iterations, with IPOPT (several times longer) only after ``recover_after`` failures in a row.
+previous plan and is counted in :attr:`DiscreteInputMPC.stats`; the next step re-solves with IPOPT
+(or, with ``recovery="continue"``, continues the SQP from the failed iterate, so that a step needs
+at most ``max_iter`` SQP iterations, with IPOPT only after ``recover_after`` failures in a row).
 """
 
 from __future__ import annotations
@@ -93,24 +93,25 @@ class DiscreteInputMPC:
         plans nearly dynamically consistent (the trade-off is measured in the README).
     recover_after : int, optional
         After this many failed solves in a row the next solve is a recovery solve (IPOPT)
-        from the shifted plan; by default 3 with ``recovery="continue"``, 1 with
-        ``"ipopt"``.
-    recovery : {"continue", "ipopt"}, optional
-        What the solves after a failure start from: ``"continue"`` (the default with an SQP
-        ``solver``; ``"ipopt"`` with the others) warm-starts the
+        from the shifted plan; by default 1 with ``recovery="ipopt"``, 3 with
+        ``"continue"``.
+    recovery : {"ipopt", "continue"}
+        What the solves after a failure start from: ``"continue"`` warm-starts the
         next SQP solve from the failed iterate itself, shifted, so that the SQP carries on
         converging over the following steps (each at most ``max_iter`` SQP iterations),
         and an IPOPT recovery solve runs only after ``recover_after`` failures in a row,
-        from the last applied plan; ``"ipopt"`` discards the failed iterate and
-        re-solves with IPOPT from the shifted previous plan (before issue 16).  Either way a
+        from the last applied plan; ``"ipopt"`` (default) discards the failed iterate and
+        re-solves with IPOPT from the shifted previous plan.  ``"continue"`` halves the step
+        time's p99 (no IPOPT after most failures) but applies stale plans more often: it
+        loses starts with the plant 10 % off that ``"ipopt"`` catches (issue 16, README).  Either way a
         failed step applies the shifted previous plan (a failed iterate is continued only if
         finite and within 1 of feasibility).
-    cold : {"warm", "ipopt"}, optional
+    cold : {"ipopt", "warm"}
         Solver of the first step of an episode, from a rolled-out guess: the warm solver
-        (``"warm"``, the default with an SQP ``solver``: at most ``max_iter`` iterations, its iterate applied if finite,
+        (``"warm"``: at most ``max_iter`` iterations, its iterate applied if finite,
         as there is no previous plan to fall back on but the guess, and continued on the next
-        step), or IPOPT with up to ``max(10 * max_iter, 300)`` iterations (before issue 16;
-        about 15 times as long as a warm step).
+        step), or IPOPT with up to ``max(10 * max_iter, 300)`` iterations (default; about 15
+        times as long as a median warm step).
     lookahead_penalty : casadi.Function, optional
         ``x -> scalar`` added to the cost of every state the lookahead enumerates.
     adapt : bool
@@ -140,18 +141,15 @@ class DiscreteInputMPC:
                  horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
                  solver="sqp", relaxation="continuous", rounding="lookahead", depth=4,
                  max_iter=10, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
-                 lookahead_penalty=None, recovery=None, cold=None,
+                 lookahead_penalty=None, recovery="ipopt", cold="ipopt",
                  recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5):
         self.ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt, horizon,
                        state_lb, state_ub, input_weight, n_substeps, levels_name="force_set")
         self.solver = check_choice("solver", solver, SOLVERS)
         self.relaxation = check_choice("relaxation", relaxation, ("poc", "continuous"))
         self.rounding = check_choice("rounding", rounding, (*ROUNDINGS, "lookahead"))
-        sqp = self.solver.startswith("sqp")
-        self.recovery = check_choice("recovery", ("continue" if sqp else "ipopt")
-                                     if recovery is None else recovery, ("continue", "ipopt"))
-        self.cold = check_choice("cold", ("warm" if sqp else "ipopt") if cold is None else cold,
-                                 ("warm", "ipopt"))
+        self.recovery = check_choice("recovery", recovery, ("ipopt", "continue"))
+        self.cold = check_choice("cold", cold, ("ipopt", "warm"))
         inexact_tol = check_real("inexact_tol", inexact_tol, positive=True)
         forgetting = check_real("adapt_forgetting", adapt_forgetting)
         if not 0 < forgetting <= 1:
@@ -173,8 +171,8 @@ class DiscreteInputMPC:
             check_real("tol", tol, positive=True), inexact_tol=inexact_tol)
         self.accept_inexact = bool(accept_inexact)
         if recover_after is None:
-            # 3: with 10 the plant 10 % off (mismatch start 15, seed 0) ran 34 steps on stale
-            # plans and did not settle; with 2 or 3 it settles at 2.5 s
+            # continue: 3 (with 10, mismatch start 15 of seed 0 ran 34 steps on stale plans
+            # and did not settle; with 2 or 3 it settles at 2.5 s)
             recover_after = 3 if self.recovery == "continue" else 1
         self.recover_after = check_int("recover_after", recover_after, low=0)
         self._rollout = self.step_function.mapaccum(self.horizon)
