@@ -5,10 +5,17 @@ random starts of issue 3 (seed 0) on the true plant; the table reports success, 
 track used, fallbacks, and the per-step solve time over all episodes (wall clock and CPU time of
 the calling thread; the CPU time is not inflated when other processes share the cores).  The
 default configuration is also run with +-10 % plant mismatch and with N(0, 0.01^2) measurement
-noise.  Prints a markdown table and writes ``benchmarks/results/mpc.json``.
+noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
+``benchmarks/results/``).
 
     python benchmarks/bench_mpc.py                 # everything (about 8 minutes on 2 cores)
     python benchmarks/bench_mpc.py --episodes 3    # quick look
+    python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+continue \
+        --no-robustness --out /tmp/rt             # the real-time comparison (issue 16)
+
+Step times are wall clock (what a real-time loop sees) and CPU time of the calling thread
+(``step_cpu_ms``: less inflated when other processes share the cores); measure the wall-clock
+p99 on an idle machine.
 """
 
 from __future__ import annotations
@@ -32,6 +39,9 @@ CONFIGS = {
     # level everywhere); the solvers with the default pulse balancer near the upright.
     "sqp+continuous+lookahead+balancer": ({"solver": "sqp", "relaxation": "continuous",
                                            "rounding": "lookahead"}, "default"),
+    "sqp+continue": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                      "cold": "warm", "recovery": "continue"},
+                     "SQP cold start, failed iterates continued, IPOPT after 3 failures"),
     "sqp+continuous+lookahead": ({"solver": "sqp", "relaxation": "continuous",
                                   "rounding": "lookahead", "balance": False},
                                  "lookahead everywhere (no balancer)"),
@@ -75,21 +85,25 @@ def run_config(model, options, starts, scenario="nominal", seed=0, noise_std=0.0
                   "max": s["solve_ms_max"]},
         solve_cpu_ms={"median": s["solve_cpu_ms_median"], "p99": s["solve_cpu_ms_p99"]},
         step_ms={"median": s["step_ms_median"], "p99": s["step_ms_p99"]},
+        step_cpu_ms={"median": s["step_cpu_ms_median"], "p99": s["step_cpu_ms_p99"]},
+        solver={"by_kind": s["by_kind"], "statuses": s["statuses"]},
         iterations_median=s["iterations_median"], build_s=round(build, 3),
         failed_starts=[e.x0.round(4).tolist() for e in eps if not e.success])
 
 
 def table(rows):
     head = ("| configuration | scenario | success | median t_up (s) | max abs x (m) | fallbacks "
-            "| solve median (ms) | solve p99 (ms) | CPU p99 (ms) | step median (ms) |")
-    lines = [head, "|" + "---|" * 10]
+            "| solve median (ms) | solve p99 (ms) | CPU p99 (ms) | step median (ms) "
+            "| step p99 (ms) | step CPU p99 (ms) |")
+    lines = [head, "|" + "---|" * 12]
     for name, r in rows:
         lines.append(
             f"| {name} | {r['scenario']} | {100 * r['success_rate']:.0f} % | "
             f"{r['median_time_to_upright']:.2f} | {r['max_track_used']:.2f} | "
             f"{r['n_failures']}/{r['n_solves']} | {r['solve_ms']['median']:.2f} | "
             f"{r['solve_ms']['p99']:.1f} | {r['solve_cpu_ms']['p99']:.1f} | "
-            f"{r['step_ms']['median']:.2f} |")
+            f"{r['step_ms']['median']:.2f} | {r['step_ms']['p99']:.1f} | "
+            f"{r['step_cpu_ms']['p99']:.1f} |")
     return "\n".join(lines)
 
 
@@ -99,8 +113,14 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--configs", default=",".join(CONFIGS),
                         help="comma-separated subset of " + ", ".join(CONFIGS))
-    parser.add_argument("--json", default=str(Path(__file__).parent / "results" / "mpc.json"))
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results"),
+                        help="folder for mpc.json (created if missing)")
+    parser.add_argument("--json", default=None, help="output file (overrides --out)")
+    parser.add_argument("--no-robustness", action="store_true",
+                        help="skip the mismatch and noise runs of the default")
     args = parser.parse_args(argv)
+    if args.json is None:
+        args.json = str(Path(args.out) / "mpc.json")
     names = [c for c in args.configs.split(",") if c]
     unknown = set(names) - set(CONFIGS)
     if unknown:
@@ -112,7 +132,7 @@ def main(argv=None):
     for name in names:
         rows.append((name, run_config(model, CONFIGS[name][0], starts, seed=args.seed)))
         print(table(rows[-1:]).splitlines()[-1], flush=True)
-    if DEFAULT in names:
+    if DEFAULT in names and not args.no_robustness:
         for scenario in ROBUSTNESS:
             rows.append((DEFAULT, run_config(model, CONFIGS[DEFAULT][0], starts, scenario,
                                              seed=args.seed)))

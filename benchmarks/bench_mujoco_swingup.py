@@ -13,6 +13,7 @@ For each cart-pendulum below, MuJoCo (an engine we did not write) is the plant t
 The exact-model ceiling (the controller built from the plant's true equations) runs beside it.
 
     python benchmarks/bench_mujoco_swingup.py --out bench-results            # 10 starts per plant
+    python benchmarks/bench_mujoco_swingup.py --out bench-results --starts 20
     python benchmarks/bench_mujoco_swingup.py --out bench-results --starts 2  # quick look
 
 Needs the optional extra ``mujoco`` (``pip install -e '.[mujoco]'``).
@@ -58,7 +59,8 @@ class _Exact:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", required=True, help="existing folder for mujoco_swingup.json")
+    ap.add_argument("--out", required=True,
+                    help="existing folder for mujoco_swingup.json and mujoco_swingup.md")
     ap.add_argument("--starts", type=int, default=10, help="random starts per plant (default 10)")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
@@ -74,6 +76,7 @@ def main(argv=None):
     from lsindy_cas.plants import mujoco as pm
 
     starts = random_starts(args.starts, args.seed)
+    t_start = time.perf_counter()
     rows = []
     for name, mc, mp, L in PLANTS:
         plant = pm.cart_pendulum(mc, mp, L)
@@ -104,22 +107,32 @@ def main(argv=None):
                           "max_track_used": float(max(e.track_used for e in eps)),
                           "forces_in_set": bool(all(set(np.unique(e.forces)) <= {-10.0, 0.0, 10.0}
                                                     for e in eps)),
+                          "failed_starts": [j for j, e in enumerate(eps) if not e.success],
                           "solve_ms_median": float(np.median(solve)),
                           "solve_ms_p99": float(np.percentile(solve, 99))}
         rows.append(row)
 
-    print("\n| plant | mc, mp, L | kick (rad/s) | support exact | max coef err | identified: success |"
-          " t_up median (s) | exact model: success | solve p99 (ms) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    lines = ["| plant | mc, mp, L | kick (rad/s) | support exact | max coef err | identified: success |"
+             " t_up median (s) | max abs x (m) | failed starts | exact model: success | failed starts |"
+             " solve p99 (ms) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         i, e = r["identified"], r["exact"]
-        print(f"| {r['plant']} | {r['mc']}, {r['mp']}, {r['L']} | {r['kick_rad_s']:.2f} | "
-              f"{r['support_exact']} | {r['max_coef_rel_err']:.1e} | {i['success']}/{i['episodes']} | "
-              f"{i['median_time_to_upright']} | {e['success']}/{e['episodes']} | "
-              f"{i['solve_ms_p99']:.1f} |")
+        t_up = "-" if i["median_time_to_upright"] is None else f"{i['median_time_to_upright']:.2f}"
+        lines.append(
+            f"| {r['plant']} | {r['mc']}, {r['mp']}, {r['L']} | {r['kick_rad_s']:.2f} | "
+            f"{r['support_exact']} | {r['max_coef_rel_err']:.1e} | {i['success']}/{i['episodes']} | "
+            f"{t_up} | {i['max_track_used']:.2f} | {i['failed_starts'] or '-'} | "
+            f"{e['success']}/{e['episodes']} | {e['failed_starts'] or '-'} | {i['solve_ms_p99']:.1f} |")
+    print("\n" + "\n".join(lines))
     path = out / "mujoco_swingup.json"
-    path.write_text(json.dumps({"starts": args.starts, "seed": args.seed, "plants": rows}, indent=2))
-    print(f"\nwritten: {path}")
+    path.write_text(json.dumps({"starts": args.starts, "seed": args.seed,
+                                "seconds": round(time.perf_counter() - t_start, 1),
+                                "plants": rows}, indent=2))
+    (out / "mujoco_swingup.md").write_text(
+        f"MuJoCo swing-up, {args.starts} random starts per plant (seed {args.seed}); identified from "
+        "MuJoCo data only, controlled in MuJoCo; `python benchmarks/bench_mujoco_swingup.py "
+        f"--out DIR --starts {args.starts}`\n\n" + "\n".join(lines) + "\n")
+    print(f"\nwritten: {path} and mujoco_swingup.md")
     return 0
 
 

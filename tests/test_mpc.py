@@ -125,6 +125,8 @@ def test_find_upright_from_the_model_for_either_angle_convention(model):
     ({"track_limit": -1.0}, ValueError, "track_limit"),
     ({"solver": "cplex"}, ValueError, "solver"),
     ({"rounding": "ceil"}, ValueError, "rounding"),
+    ({"recovery": "restart"}, ValueError, "recovery"),
+    ({"cold": "fatrop"}, ValueError, "cold"),
     ({"weights": {"angel": 1.0}}, ValueError, "weights"),
 ])
 def test_bad_arguments_raise_naming_the_argument(model, kwargs, exc, word):
@@ -155,7 +157,7 @@ def test_bad_states_raise(ctrl, state, exc):
 # --- fallback ------------------------------------------------------------------------------------
 
 def test_failed_solve_falls_back_to_the_shifted_previous_plan(model):
-    ctrl = SwingUpMPC(model)
+    ctrl = SwingUpMPC(model, cold="ipopt", recovery="ipopt")
     x = np.array([0.0, 2.5, 0.0, 0.5])
     ctrl(x)
     previous = ctrl.plan_["forces"]
@@ -180,17 +182,77 @@ def test_failed_solve_falls_back_to_the_shifted_previous_plan(model):
     assert {k: v["n"] for k, v in by_kind.items()} == {"warm": 1, "cold": 1, "recover": 1}
 
 
+def test_continued_recovery_warm_starts_from_the_failed_iterate(model):
+    """recovery="continue": after a failed solve the next SQP solve starts from the failed
+    iterate (shifted), the step applies the shifted previous plan, and IPOPT runs only after
+    recover_after failures in a row, from the last applied plan."""
+    ctrl = SwingUpMPC(model, recovery="continue", recover_after=2)
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    for _ in range(5):  # until a solve converges (the cold one may stop at the cap)
+        ctrl(x)
+        if ctrl.plan_["success"]:
+            break
+    assert ctrl.plan_["success"]
+    good = ctrl.plan_["forces"]
+    kinds = len(ctrl.stats.solve_kinds)
+    seen = []
+
+    def failing(x_init, z0, lam_g0, lam_x0, kind="warm"):
+        seen.append((kind, z0.copy()))
+        z = z0.copy()
+        z[ctrl.nlp._ic] = 1.0  # a marked iterate: every relaxed force 1 N
+        ctrl.nlp.last_violation = 1e-3
+        return "failed", z, lam_g0, lam_x0, 10
+
+    ctrl.nlp.solve = failing
+    ctrl(x)  # fails: applies the shifted good plan, continues from the marked iterate
+    np.testing.assert_allclose(ctrl.plan_["forces"][:-1], good[1:])
+    ctrl(x)  # second failure in a row, still SQP ("warm"), started from the marked iterate
+    assert [k for k, _ in seen] == ["warm", "warm"]
+    np.testing.assert_allclose(ctrl.nlp.unpack(seen[1][1])[0][:, 0], 1.0)
+    np.testing.assert_allclose(ctrl.plan_["forces"][:-2], good[2:])
+    ctrl(x)  # after recover_after failures: IPOPT from the last applied plan, shifted again
+    assert seen[2][0] == "recover"
+    np.testing.assert_allclose(ctrl.nlp.unpack(seen[2][1])[0][:-3, 0], good[3:])
+    assert ctrl.stats.solve_kinds[kinds:] == ["warm", "warm", "recover"]
+
+
+def test_cold_warm_solver_applies_its_iterate_and_counts_as_cold(model):
+    """cold="warm": the first solve of an episode runs the warm (SQP) solver, recorded as
+    "cold"; a capped iterate is applied (there is no previous plan) and continued."""
+    ctrl = SwingUpMPC(model, cold="warm")
+    kinds = []
+    solve = ctrl.nlp.solve
+
+    def record(*args, kind="warm"):
+        kinds.append(kind)
+        return solve(*args, kind=kind)
+
+    ctrl.nlp.solve = record
+    ctrl(np.array([0.0, 0.3, 0.0, 0.0]))
+    assert kinds == ["warm"] and ctrl.stats.solve_kinds == ["cold"]
+    ctrl.nlp.solve = lambda x, z0, lg, lx, kind="warm": ("failed", z0 * 0 + 2.0, lg, lx, 10)
+    ctrl.nlp.last_violation = 0.0
+    ctrl.reset()
+    failures = ctrl.stats.n_failures
+    force = ctrl(np.array([0.0, 0.3, 0.0, 0.0]))
+    assert force in FORCES
+    np.testing.assert_allclose(ctrl.plan_["forces"], 2.0)  # the iterate, not the guess
+    assert ctrl.stats.n_failures == failures + 1
+
+
 def test_capped_solves_within_inexact_tol_are_applied_not_failed(model, plant):
     """A solve stopped by the iteration cap is applied ("inexact") exactly when its iterate's
-    constraint violation is within inexact_tol; otherwise it is a failure (fallback)."""
+    constraint violation is within inexact_tol; otherwise it is a failure (fallback).  (A
+    solve stopped before the cap, e.g. by a failed QP, is a failure whatever its violation.)"""
     seen = []
     for tol in (1e-3, 1e-6):
-        ctrl = SwingUpMPC(model, max_iter=1, inexact_tol=tol)
+        ctrl = SwingUpMPC(model, max_iter=1, inexact_tol=tol, cold="ipopt", recovery="ipopt")
         solve = ctrl.nlp.solve
 
         def record(*args, **kwargs):
             out = solve(*args, **kwargs)
-            if out[0] != "converged":
+            if out[0] != "converged" and out[4] >= ctrl.nlp.max_iters[kwargs["kind"]]:
                 seen.append((tol, out[0], ctrl.nlp.last_violation))
             return out
 

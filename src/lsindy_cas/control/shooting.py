@@ -143,6 +143,7 @@ class MultipleShootingNLP:
         ng_path = [len(r) - (n_state if k < horizon else 0) for k, r in enumerate(rows)]
         nu = [n_c] + [n_c + n_s] * (horizon - 1) + [0]
         self.solver_name = solver
+        self._nlp, self._nu, self._ng_path, self._tol = nlp, nu, ng_path, tol
         self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol)
         # cold starts (first step of an episode) and recoveries after a failed step need many
         # more iterations than warm starts: exact-Hessian IPOPT on the same NLP

@@ -31,6 +31,8 @@ class MPCStats:
         when other processes compete for the cores.
     step_times : list of float
         Wall-clock seconds per controller call (solve + warm start + rounding + checks).
+    step_cpu_times : list of float
+        CPU seconds of the calling thread per controller call.
     n_balanced : int
         Steps whose level was chosen by a subclass's own rule instead of from the relaxed plan
         (:class:`~lsindy_cas.mpc.SwingUpMPC`: the pulse balancer near the upright).
@@ -50,6 +52,7 @@ class MPCStats:
     solve_times: list = field(default_factory=list)
     solve_cpu_times: list = field(default_factory=list)
     step_times: list = field(default_factory=list)
+    step_cpu_times: list = field(default_factory=list)
     iterations: list = field(default_factory=list)
     solve_kinds: list = field(default_factory=list)
     statuses: dict = field(default_factory=dict)
@@ -69,6 +72,7 @@ class MPCStats:
                    for k in ("warm", "cold", "recover") if np.any(kinds == k)}
         c = np.asarray(self.solve_cpu_times) * 1e3
         s = np.asarray(self.step_times) * 1e3
+        sc = np.asarray(self.step_cpu_times) * 1e3
         pct = (lambda a, q: float(np.percentile(a, q)) if a.size else float("nan"))
         return {"n_solves": self.n_solves, "n_failures": self.n_failures,
                 "n_inexact": self.n_inexact, "n_balanced": self.n_balanced,
@@ -76,5 +80,6 @@ class MPCStats:
                 "solve_ms_max": float(t.max()) if t.size else float("nan"),
                 "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),
                 "step_ms_median": pct(s, 50), "step_ms_p99": pct(s, 99),
+                "step_cpu_ms_median": pct(sc, 50), "step_cpu_ms_p99": pct(sc, 99),
                 "iterations_median": pct(np.asarray(self.iterations), 50), "by_kind": by_kind,
                 "statuses": dict(self.statuses)}
