@@ -25,8 +25,9 @@
    (∇E·δx, large for the kinetic terms), while a rival without those terms — e.g. a non-positive
    definite θ̇₁² + θ̇₂² without the coupling, or cos θ + θ̇² + φ² — does not, and "fits" 5–90×
    better although it explains nothing more (measured on the noise sweep's paper protocol: with
-   the regressors' noise removed the correct energy fits 1.6–17× better than those rivals; with
-   only the work's noise removed the rivals still win);
+   the regressors computed from the clean states the rivals' advantage vanishes — cart: ratio
+   0.6–1.4 — or reverses — spherical, double: the correct energy fits 6–17× better; with only
+   the work's noise removed the rivals still win by 2–87×);
 6. **ill-conditioning** — the column-normalised terms of the chosen support have a condition
    number above ``COND_BAD`` (round-off alone moves the coefficients visibly);
 7. **coefficients not determined** — a coefficient's jackknife standard error exceeds
