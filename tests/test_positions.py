@@ -142,10 +142,12 @@ def bench(load_script):
 @pytest.mark.slow          # 10 runs × 5 s simulated with a held input: ~20 s each
 @pytest.mark.parametrize("case", ["noise", "quantised"])
 def test_positions_only_rich_protocol_cart(bench, case):
-    """One seed of the benchmark (cart-pendulum): exact support, coefficients within 5 %."""
+    """One seed of the benchmark (cart-pendulum): exact support, coefficients within 5 %, and the
+    status says so (no false alarm)."""
     row = bench.run_one(("cart", case, 1))
     assert row["velocities"] == "estimated"
     assert row["exact_support"] and row["max_rel_error"] < bench.TOL
+    assert row["status"] == "ok", row["status_reasons"]
 
 
 def test_cli_positions_only_says_so(tmp_path, cart, capsys):

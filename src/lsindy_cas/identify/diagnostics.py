@@ -88,6 +88,9 @@ class FitRecord:
     trap : ConstantForceTrap or None
     hold : str or None
         The input hold of the work integral (None without one).
+    state_var : array (n_rows, 2n) or None
+        Noise variance of the states behind each row (smoothed integral form): what the status
+        needs to judge any support's residual in units of its own noise (χ).
     """
 
     library: object
@@ -100,6 +103,7 @@ class FitRecord:
     smoothing: list | None = None
     trap: ConstantForceTrap | None = None
     hold: str | None = None
+    state_var: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def search(self):
@@ -163,6 +167,7 @@ class Diagnostics:
     traps: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
     hold: str | None = None
+    state_var: np.ndarray | None = field(default=None, repr=False)
     hold_errors: dict = field(default_factory=dict)
     velocities: str = "measured"
     status: str | None = None

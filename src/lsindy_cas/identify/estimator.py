@@ -317,8 +317,8 @@ class LagrangianSINDy:
             self.energy_scale_, self.normalised_by_ = "relative", lib.names[j]
         rho = full_rayleigh(self._diss_lib, self._diss_active, bal, coef)
         # 9. the model and its report
-        record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef,
-                           smoothing, trap, hold)
+        record = FitRecord(lib, bal, trajectories, scale_system, admissible, sel, coef, smoothing,
+                           trap, hold, state_var if bal.per_sample else None)
         self.smoothing_, self.trap_, self.selection_, self.n_terms_ = smoothing, trap, sel, sel.k
         self.search_, self.passive_, self.form_ = sel.search, bal.passive, bal.form
         self.actuated_ = [c for c in coords if any(c in tr.actuated for tr in
