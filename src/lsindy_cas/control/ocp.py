@@ -18,7 +18,7 @@ import numpy as np
 
 from .._validate import check_int, check_real
 
-__all__ = ["OCP", "check_levels", "rk4_step"]
+__all__ = ["OCP", "check_levels", "rk4_expr", "rk4_step"]
 
 
 def rk4_step(ode, n_state, n_input, dt, n_substeps):
@@ -42,15 +42,20 @@ def rk4_step(ode, n_state, n_input, dt, n_substeps):
     """
     x = ca.SX.sym("x", n_state)
     u = ca.SX.sym("u", n_input)
-    h = dt / n_substeps
-    xk = x
+    return ca.Function("F", [x, u], [rk4_expr(ode, x, u, dt, n_substeps)], ["x", "u"], ["x_next"])
+
+
+def rk4_expr(ode, x, u, dt, n_substeps):
+    """The state after ``n_substeps`` classical RK4 steps over ``dt`` from ``x`` under a held ``u``,
+    as a CasADi expression (``dt`` may be a number or a symbol, e.g. for uneven sample times)."""
+    h, xk = dt / n_substeps, x
     for _ in range(n_substeps):
         k1 = ode(xk, u)
         k2 = ode(xk + h / 2 * k1, u)
         k3 = ode(xk + h / 2 * k2, u)
         k4 = ode(xk + h * k3, u)
         xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("F", [x, u], [xk], ["x", "u"], ["x_next"])
+    return xk
 
 
 def check_levels(force_set, name="force_set"):

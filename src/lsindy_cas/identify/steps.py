@@ -67,16 +67,11 @@ def drift_simulator(ode, n_coords: int, substeps: int = 8):
     ~1e-10 of the states' range — far below the check's tolerance (5 %).
     """
     import casadi as ca
+
+    from ..control.ocp import rk4_expr
     n = 2 * n_coords
     x, u, h = ca.MX.sym("x", n), ca.MX.sym("u", n_coords), ca.MX.sym("h")
-    dt, xk = h / substeps, x
-    for _ in range(substeps):
-        k1 = ode(xk, u)
-        k2 = ode(xk + dt / 2 * k1, u)
-        k3 = ode(xk + dt / 2 * k2, u)
-        k4 = ode(xk + dt * k3, u)
-        xk = xk + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    step = ca.Function("rk4_interval", [x, u, h], [xk])
+    step = ca.Function("rk4_interval", [x, u, h], [rk4_expr(ode, x, u, h, substeps)])
 
     def simulate(x0, t, u_fn):
         X = np.empty((len(t), n))
