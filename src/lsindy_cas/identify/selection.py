@@ -54,7 +54,7 @@ from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 
-__all__ = ["Step", "Selection", "select", "cv_error", "fold_ids", "IMPROVEMENT"]
+__all__ = ["Step", "Selection", "select", "cv_error", "chi_of", "fold_ids", "IMPROVEMENT"]
 
 IMPROVEMENT = 2.0
 # χ of a correct model is ≈ 1 − k/m_eff in theory; measured 0.2–1.7 for the true energies of the
@@ -374,8 +374,13 @@ def _chi(bal, res, noise) -> float:
     """Residual of the search's model in units of its expected noise (nan without a noise model)."""
     if noise is None or bal.b is None:
         return float("nan")
-    bb = float(bal.b @ bal.b)
+    return chi_of(bal, res.coef, noise)
+
+
+def chi_of(bal, coef, noise) -> float:
+    """Residual of the coefficients ``coef`` on the driven balance in units of the noise they carry
+    into it (:meth:`~.uncertainty.NoiseModel.chi`)."""
     # the residual itself, not score·‖b‖²: the score comes from the normal equations, whose
     # round-off (~1e-14 relative) would read as a misfit on clean data
-    r = bal.A @ res.coef - bal.b
-    return noise.chi(res.coef, float(r @ r), _CV_FLOOR * bb)
+    r = bal.A @ coef - bal.b
+    return noise.chi(coef, float(r @ r), _CV_FLOOR * float(bal.b @ bal.b))

@@ -44,7 +44,7 @@ from .admissibility import EXCLUDED_REASON, REDUCIBLE_REASON
 from .dissipation import floored_chi
 from .fitting import coef_on_support, normalise_columns
 from .diagnostics import NEAR_TIE, _NULL_FACTOR
-from .selection import CHI_OK
+from .selection import CHI_OK, chi_of
 from .uncertainty import noise_model
 
 __all__ = ["assess", "OK", "UNDETERMINED", "SIM_TOL", "HORIZON", "CHI_BAD", "CHI_MIN_ERROR",
@@ -69,7 +69,6 @@ COND_BAD = 1e10
 # direction — the pendulum's own energy scale, cos θ and θ̇² together, unbiased — with
 # jackknife errors 0.04–0.26 that do not rank them (see benchmarks/results/noise_status_paper.md).
 REL_STD_BAD = 0.125
-_FLOOR = 1e-18       # residual that is numerically zero, relative to ‖b‖² (selection._CV_FLOOR)
 
 
 def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
@@ -108,22 +107,21 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
             reasons = [w for w in reasons if "uniquely" not in w]
     # the dissipation integrals' own quadrature error is part of what an exact model leaves
     d.chi = floored_chi(bal, fit.coef, d.chi)
-    rel = _relative_errors(fit.coef, coef_std)
+    rel, least = _relative_errors(fit.coef, coef_std)
     if rel is not None:
         checks["largest_relative_std"] = rel
     if not bal.passive and d.null_dim > 0 and rel is not None and rel < 1 / np.sqrt(_NULL_FACTOR):
         reasons = [w for w in reasons if "uniquely" not in w]
     noise = _noise(fit)
+    chi = None if noise is None else _chi(bal, noise, fit.support)
     if noise is not None and rel is not None and rel <= REL_STD_BAD:
         # a large unexplained held-out fraction that the noise accounts for (χ ≤ 2, the level of
         # correct models) with every coefficient determined is the noise, not a poor model
-        chi = _chi(bal, noise, fit.support)
         checks["chi_chosen"] = chi
         if chi <= CHI_OK:
             reasons = [w for w in reasons if "work unexplained" not in w]
     if rel is not None and rel > REL_STD_BAD:
-        j = _least_determined(fit.coef, coef_std)
-        reasons.append(f"the coefficient of {fit.library.names[j]} is determined only to "
+        reasons.append(f"the coefficient of {fit.library.names[least]} is determined only to "
                        f"±{100 * rel:.2g} % (jackknife standard error; more than "
                        f"{100 * REL_STD_BAD:g} %): add runs, vary the input or reduce the noise")
     if np.isfinite(d.chi) and d.chi > CHI_BAD and d.held_out_error > CHI_MIN_ERROR:
@@ -143,7 +141,6 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
     units = ""
     if better and noise is not None:
         # in units of the noise each fit leaves (see the module notes, rule 5)
-        chi = _chi(bal, noise, fit.support)
         ratios = [chi / max(_chi(bal, noise, [fit.library.names.index(n) for n in t[0]]), 1.0)
                   for t in better]
         checks["rival_chi_ratio"] = max(ratios)
@@ -174,20 +171,17 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
 
 
 def _relative_errors(coef, coef_std):
-    """Largest standard error relative to its coefficient on the support (None without errors)."""
+    """Largest standard error relative to its coefficient on the support, and that coefficient's
+    index ((None, None) without errors)."""
     if coef_std is None:
-        return None
+        return None, None
     coef, std = np.asarray(coef, float), np.asarray(coef_std, float)
     S = np.flatnonzero(coef)
     if std.shape != coef.shape or not S.size or not np.all(np.isfinite(std[S])):
-        return None
-    return float(np.max(std[S] / np.abs(coef[S])))
-
-
-def _least_determined(coef, coef_std) -> int:
-    """Index of the coefficient with the largest relative standard error."""
-    S = np.flatnonzero(coef)
-    return int(S[np.argmax(np.asarray(coef_std, float)[S] / np.abs(np.asarray(coef, float)[S]))])
+        return None, None
+    ratios = std[S] / np.abs(coef[S])
+    j = int(np.argmax(ratios))
+    return float(ratios[j]), int(S[j])
 
 
 def _noise(fit):
@@ -202,9 +196,7 @@ def _noise(fit):
 def _chi(bal, noise, S) -> float:
     """χ of the least-squares fit on support ``S``: its residual in units of the noise that its own
     coefficients carry into the balance (:meth:`~.uncertainty.NoiseModel.chi`)."""
-    coef = coef_on_support(bal.A, bal.b, list(S))[0]
-    r = bal.A @ coef - bal.b
-    return noise.chi(coef, float(r @ r), _FLOOR * float(bal.b @ bal.b))
+    return chi_of(bal, coef_on_support(bal.A, bal.b, list(S))[0], noise)
 
 
 def _momentum(lib, S, eta) -> bool:
