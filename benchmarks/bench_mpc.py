@@ -13,6 +13,9 @@ noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
     python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+continue \
         --no-robustness --out /tmp/rt             # the real-time comparison (issue 16)
 
+The configurations given run interleaved (start ``i`` of each before start ``i + 1`` of any), so
+that a change of the machine's load affects them alike.
+
 Step times are wall clock (what a real-time loop sees) and CPU time of the calling thread
 (``step_cpu_ms``: less inflated when other processes share the cores); measure the wall-clock
 p99 on an idle machine.
@@ -39,6 +42,9 @@ CONFIGS = {
     # level everywhere); the solvers with the default pulse balancer near the upright.
     "sqp+continuous+lookahead+balancer": ({"solver": "sqp", "relaxation": "continuous",
                                            "rounding": "lookahead"}, "default"),
+    "sqp+solve-balanced": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                            "solve_balanced": True},
+                           "relaxed NLP solved on the balancer's steps too (before issue 16)"),
     "sqp+continue": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                       "cold": "warm", "recovery": "continue"},
                      "SQP cold start, failed iterates continued, IPOPT after 3 failures"),
@@ -67,20 +73,39 @@ ROBUSTNESS = ("mismatch", "noise")
 
 def run_config(model, options, starts, scenario="nominal", seed=0, noise_std=0.01):
     """Run all starts with one controller; returns a JSON-ready dict of metrics."""
-    t0 = time.perf_counter()
-    ctrl = SwingUpMPC(model, **options)
-    build = time.perf_counter() - t0
-    rng = np.random.default_rng([seed, 7])
-    eps = []
+    return run_configs(model, [options], starts, scenario, seed, noise_std)[0]
+
+
+def run_configs(model, option_list, starts, scenario="nominal", seed=0, noise_std=0.01):
+    """Run all starts with one controller per entry of ``option_list``, interleaved: start
+    ``i`` of every configuration runs before start ``i + 1`` of any, so that a change of the
+    machine's load during the run affects all configurations alike.  Each configuration draws
+    its plants and noise from its own generator, as if run alone.  Returns one JSON-ready dict
+    of metrics per configuration."""
+    ctrls, builds, rngs, eps = [], [], [], []
+    for options in option_list:
+        t0 = time.perf_counter()
+        ctrls.append(SwingUpMPC(model, **options))
+        builds.append(time.perf_counter() - t0)
+        rngs.append(np.random.default_rng([seed, 7]))
+        eps.append([])
     for x0 in starts:
-        plant, _ = scenario_plant(scenario, rng, ctrl.dt)
-        eps.append(run_episode(ctrl, plant, x0, noise_std=noise_std if scenario == "noise"
-                               else 0.0, rng=rng))
+        for ctrl, rng, episodes in zip(ctrls, rngs, eps):
+            plant, _ = scenario_plant(scenario, rng, ctrl.dt)
+            episodes.append(run_episode(ctrl, plant, x0, noise_std=noise_std
+                                        if scenario == "noise" else 0.0, rng=rng))
+    return [_metrics(c, o, e, scenario, b)
+            for c, o, e, b in zip(ctrls, option_list, eps, builds)]
+
+
+def _metrics(ctrl, options, eps, scenario, build):
+    """JSON-ready metrics of one configuration's episodes."""
     s = ctrl.stats.summary()
     return dict(
         scenario_stats(eps), scenario=scenario, options=options,
         all_forces_in_set=bool(all(np.isin(e.forces, ctrl.levels).all() for e in eps)),
-        n_solves=s["n_solves"], n_inexact=s["n_inexact"],
+        n_solves=s["n_solves"], n_inexact=s["n_inexact"], n_balanced=s["n_balanced"],
+        n_steps=len(ctrl.stats.step_times),
         solve_ms={"median": s["solve_ms_median"], "p99": s["solve_ms_p99"],
                   "max": s["solve_ms_max"]},
         solve_cpu_ms={"median": s["solve_cpu_ms_median"], "p99": s["solve_cpu_ms_p99"]},
@@ -94,8 +119,8 @@ def run_config(model, options, starts, scenario="nominal", seed=0, noise_std=0.0
 def table(rows):
     head = ("| configuration | scenario | success | median t_up (s) | max abs x (m) | fallbacks "
             "| solve median (ms) | solve p99 (ms) | CPU p99 (ms) | step median (ms) "
-            "| step p99 (ms) | step CPU p99 (ms) |")
-    lines = [head, "|" + "---|" * 12]
+            "| step p99 (ms) | step CPU median (ms) | step CPU p99 (ms) |")
+    lines = [head, "|" + "---|" * 13]
     for name, r in rows:
         lines.append(
             f"| {name} | {r['scenario']} | {100 * r['success_rate']:.0f} % | "
@@ -103,7 +128,7 @@ def table(rows):
             f"{r['n_failures']}/{r['n_solves']} | {r['solve_ms']['median']:.2f} | "
             f"{r['solve_ms']['p99']:.1f} | {r['solve_cpu_ms']['p99']:.1f} | "
             f"{r['step_ms']['median']:.2f} | {r['step_ms']['p99']:.1f} | "
-            f"{r['step_cpu_ms']['p99']:.1f} |")
+            f"{r['step_cpu_ms']['median']:.2f} | {r['step_cpu_ms']['p99']:.1f} |")
     return "\n".join(lines)
 
 
@@ -128,10 +153,8 @@ def main(argv=None):
     model, _ = identify_cart_pendulum()
     starts = random_starts(args.episodes, args.seed)
     load_before = os.getloadavg()
-    rows = []
-    for name in names:
-        rows.append((name, run_config(model, CONFIGS[name][0], starts, seed=args.seed)))
-        print(table(rows[-1:]).splitlines()[-1], flush=True)
+    rows = list(zip(names, run_configs(model, [CONFIGS[n][0] for n in names], starts,
+                                       seed=args.seed)))
     if DEFAULT in names and not args.no_robustness:
         for scenario in ROBUSTNESS:
             rows.append((DEFAULT, run_config(model, CONFIGS[DEFAULT][0], starts, scenario,

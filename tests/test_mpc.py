@@ -481,3 +481,40 @@ def test_balance_option_bad_input(model):
         SwingUpMPC(model, force_set=(-10.0, 10.0), balance={})
     assert SwingUpMPC(model, force_set=(-10.0, 10.0)).balancer is None
     assert SwingUpMPC(model, balance=False).balancer is None
+
+
+def test_balanced_steps_skip_the_solve_and_keep_the_plan_aligned(model):
+    """solve_balanced=False (default): a step the own rule decides returns its level without
+    a solve, shifts the warm start by one interval, and the next solve starts from it."""
+    ctrl = SwingUpMPC(model)
+    assert ctrl.solve_balanced is False
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    ctrl(x)  # cold solve: a plan to keep
+    warm = ctrl._warm[0].copy()
+    n_solves = ctrl.stats.n_solves
+    ctrl._own_level = lambda state: 2  # the rule decides: the largest level
+    assert ctrl(x) == FORCES[2] and ctrl(x) == FORCES[2]
+    assert ctrl.stats.n_solves == n_solves and ctrl.stats.n_balanced == 2
+    assert len(ctrl.stats.step_times) == n_solves + 2
+    seen = []
+    solve = ctrl.nlp.solve
+
+    def record(x_init, z0, lam_g0, lam_x0, kind="warm"):
+        seen.append(z0.copy())
+        return solve(x_init, z0, lam_g0, lam_x0, kind=kind)
+
+    ctrl.nlp.solve = record
+    del ctrl._own_level  # back to the class's rule (None at this state: far from the top)
+    ctrl(x)
+    c_warm, c_seen = ctrl.nlp.unpack(warm)[0], ctrl.nlp.unpack(seen[0])[0]
+    np.testing.assert_allclose(c_seen[:-2], c_warm[2:])  # shifted twice more
+    assert ctrl.stats.n_resumed == 1 and ctrl.stats.n_solves == n_solves + 1
+
+
+def test_solve_balanced_solves_every_step(model):
+    """solve_balanced=True: the NLP is solved on the rule's steps too (the rule still decides)."""
+    ctrl = SwingUpMPC(model, solve_balanced=True)
+    ctrl._own_level = lambda state: 0
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    assert ctrl(x) == FORCES[0] and ctrl(x) == FORCES[0]
+    assert ctrl.stats.n_solves == 2 and ctrl.stats.n_balanced == 2 and ctrl.stats.n_resumed == 0

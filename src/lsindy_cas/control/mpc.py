@@ -7,10 +7,12 @@ summing to 1; or a continuous input) warm-started from the shifted previous solu
 the first interval's relaxed decision into one admissible level: by enumerating short discrete
 sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas.control.lookahead`, the
 default), by sum-up rounding with the rounding error carried across steps, or by plain rounding
-(:mod:`lsindy_cas.control.rounding`).  A failed or non-converged solve falls back to the shifted
-previous plan and is counted in :attr:`DiscreteInputMPC.stats`; the next step re-solves with IPOPT
-(or, with ``recovery="continue"``, continues the SQP from the failed iterate, so that a step needs
-at most ``max_iter`` SQP iterations, with IPOPT only after ``recover_after`` failures in a row).
+(:mod:`lsindy_cas.control.rounding`); where a subclass's own rule decides (the balancer of
+:class:`~lsindy_cas.mpc.SwingUpMPC`), the step only shifts the plan.  A failed or
+non-converged solve falls back to the shifted previous plan and is counted in
+:attr:`DiscreteInputMPC.stats`; the next step re-solves with IPOPT (or, with
+``recovery="continue"``, continues the SQP from the failed iterate, so that a step needs at most
+``max_iter`` SQP iterations, with IPOPT only after ``recover_after`` failures in a row).
 """
 
 from __future__ import annotations
@@ -124,6 +126,13 @@ class DiscreteInputMPC:
         RLS forgetting factor in (0, 1].
     adapt_max_gain : float
         Bound on ``|gain|``.
+    solve_balanced : bool
+        Whether to solve the relaxed NLP also on steps whose level a subclass's own rule
+        decides (:class:`~lsindy_cas.mpc.SwingUpMPC`: the balancer near the upright), only to
+        keep the warm start.  By default (False) such a step costs only the rule: the plan is
+        shifted by one interval per step, to stay aligned in time, and the first solve after
+        the rule lets go warm-starts from it as usual (counted in ``stats.n_resumed``).
+        ``True`` is the behaviour before issue 16 (the step median was about twice as long).
 
     Attributes
     ----------
@@ -142,7 +151,8 @@ class DiscreteInputMPC:
                  solver="sqp", relaxation="continuous", rounding="lookahead", depth=4,
                  max_iter=10, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
                  lookahead_penalty=None, recovery="ipopt", cold="ipopt",
-                 recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5):
+                 recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5,
+                 solve_balanced=False):
         self.ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt, horizon,
                        state_lb, state_ub, input_weight, n_substeps, levels_name="force_set")
         self.solver = check_choice("solver", solver, SOLVERS)
@@ -170,6 +180,7 @@ class DiscreteInputMPC:
             ocp, self.relaxation, self.solver, check_int("max_iter", max_iter, low=1),
             check_real("tol", tol, positive=True), inexact_tol=inexact_tol)
         self.accept_inexact = bool(accept_inexact)
+        self.solve_balanced = bool(solve_balanced)
         if recover_after is None:
             # continue: 3 (with 10, mismatch start 15 of seed 0 ran 34 steps on stale plans
             # and did not settle; with 2 or 3 it settles at 2.5 s)
@@ -195,6 +206,7 @@ class DiscreteInputMPC:
         self._warm = None
         self._fallback = None  # shifted last applied plan while continuing a failed iterate
         self._failed = 0  # consecutive failed solves
+        self._idle = 0  # steps decided by the own rule since the last solve
         self._rounder.reset()
         self.plan_ = None
         self._last = None  # (measured state, applied force) of the previous step
@@ -283,7 +295,9 @@ class DiscreteInputMPC:
 
     # --- one control step ------------------------------------------------------------
     def __call__(self, x):
-        """Solve from state ``x`` (shape (n_state,)) and return the force to apply.
+        """Solve from state ``x`` (shape (n_state,)) and return the force to apply (a step
+        that a subclass's own rule decides returns its level, without a solve unless
+        ``solve_balanced``).
 
         Returns
         -------
@@ -294,10 +308,15 @@ class DiscreteInputMPC:
         x = self._check_state(x)
         if self.correction is not None and self._uses_correction and self._last is not None:
             self.correction.update(*self._last, x)
+        index = self._own_level(x)
+        if index is not None and not self.solve_balanced:
+            return self._balanced_step(x, index, t_start, c_start)
         # robust solvers for a cold guess, and after failures (so that a run of failures
         # cannot keep replaying an exhausted plan)
         kind = ("cold" if self._warm is None else
                 "recover" if self._failed >= self.recover_after else "warm")
+        if self._idle:
+            self.stats.n_resumed += 1
         z0, lam_g0, lam_x0 = self._cold_start(x) if self._warm is None else self._warm
         if self._fallback is not None:  # continuing a failed iterate: fall back on the plan
             zf, lgf, lxf = self._fallback
@@ -347,7 +366,7 @@ class DiscreteInputMPC:
         else:
             continued = False
         controls, states, _ = self.nlp.unpack(z)
-        index = self._own_level(x)
+        self._idle = 0
         if index is not None:
             self.stats.n_balanced += 1
         elif self._lookahead is not None:
@@ -362,6 +381,25 @@ class DiscreteInputMPC:
             z, lam_g, lam_x = zc, lgc, lxc
         zs, lgs = self.nlp.shift(z, lam_g)
         self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+        self.stats.step_times.append(time.perf_counter() - t_start)
+        self.stats.step_cpu_times.append(time.thread_time() - c_start)
+        return force
+
+    def _balanced_step(self, x, index, t_start, c_start):
+        """A step decided by the subclass's own rule without solving the NLP
+        (``solve_balanced=False``): the plan is only shifted, to stay aligned in time."""
+        self.stats.n_balanced += 1
+        self._idle += 1
+        if self._warm is not None:
+            z, lam_g, lam_x = self._warm
+            zs, lgs = self.nlp.shift(z, lam_g)
+            self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+        if self._fallback is not None:
+            z, lam_g, lam_x = self._fallback
+            zs, lgs = self.nlp.shift(z, lam_g)
+            self._fallback = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+        force = float(self.levels[index])
+        self._last = (x, force)
         self.stats.step_times.append(time.perf_counter() - t_start)
         self.stats.step_cpu_times.append(time.thread_time() - c_start)
         return force

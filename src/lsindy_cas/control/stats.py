@@ -16,7 +16,8 @@ class MPCStats:
     Attributes
     ----------
     n_solves : int
-        NLP solves attempted (one per control step).
+        NLP solves attempted (one per control step, except the steps a subclass's own rule
+        decides without a solve; see ``n_balanced``).
     n_failures : int
         Solves that failed or did not converge to a usable plan; each applied the shifted
         previous plan instead.
@@ -36,6 +37,9 @@ class MPCStats:
     n_balanced : int
         Steps whose level was chosen by a subclass's own rule instead of from the relaxed plan
         (:class:`~lsindy_cas.mpc.SwingUpMPC`: the pulse balancer near the upright).
+    n_resumed : int
+        Solves that followed steps decided by the own rule without a solve (the first solve
+        after the balancer let go; ``solve_balanced=False``).
     iterations : list of int
         Solver iterations per solve.
     solve_kinds : list of str
@@ -49,6 +53,7 @@ class MPCStats:
     n_failures: int = 0
     n_inexact: int = 0
     n_balanced: int = 0
+    n_resumed: int = 0
     solve_times: list = field(default_factory=list)
     solve_cpu_times: list = field(default_factory=list)
     step_times: list = field(default_factory=list)
@@ -76,6 +81,7 @@ class MPCStats:
         pct = (lambda a, q: float(np.percentile(a, q)) if a.size else float("nan"))
         return {"n_solves": self.n_solves, "n_failures": self.n_failures,
                 "n_inexact": self.n_inexact, "n_balanced": self.n_balanced,
+                "n_resumed": self.n_resumed,
                 "solve_ms_median": pct(t, 50), "solve_ms_p99": pct(t, 99),
                 "solve_ms_max": float(t.max()) if t.size else float("nan"),
                 "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),
