@@ -100,7 +100,8 @@ class Episode:
     coords : list of str
         Plant coordinate names.
     solve_times : list of float
-        Solver wall-clock seconds per step.
+        Solver wall-clock seconds per solve (one per step, except the steps the balancer
+        decides without a solve).
     """
 
     x0: np.ndarray
