@@ -316,7 +316,7 @@ class DiscreteInputMPC:
         kind = ("cold" if self._warm is None else
                 "recover" if self._failed >= self.recover_after else "warm")
         if self._idle:
-            self.stats.n_resumed += 1
+            self._catch_up()
         z0, lam_g0, lam_x0 = self._cold_start(x) if self._warm is None else self._warm
         if self._fallback is not None:  # continuing a failed iterate: fall back on the plan
             zf, lgf, lxf = self._fallback
@@ -385,19 +385,27 @@ class DiscreteInputMPC:
         self.stats.step_cpu_times.append(time.thread_time() - c_start)
         return force
 
+    def _catch_up(self):
+        """Shift the warm start (and the fallback plan) by the steps decided without a solve:
+        at most ``horizon`` shifts, after which the plan repeats its last interval anyway."""
+        self.stats.n_resumed += 1
+        for _ in range(min(self._idle, self.horizon)):
+            if self._warm is not None:
+                z, lam_g, lam_x = self._warm
+                zs, lgs = self.nlp.shift(z, lam_g)
+                self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+            if self._fallback is not None:
+                z, lam_g, lam_x = self._fallback
+                zs, lgs = self.nlp.shift(z, lam_g)
+                self._fallback = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+        self._idle = 0
+
     def _balanced_step(self, x, index, t_start, c_start):
         """A step decided by the subclass's own rule without solving the NLP
-        (``solve_balanced=False``): the plan is only shifted, to stay aligned in time."""
+        (``solve_balanced=False``); the plan is shifted by one interval per such step before
+        the next solve (:meth:`_catch_up`), to stay aligned in time."""
         self.stats.n_balanced += 1
-        self._idle += 1
-        if self._warm is not None:
-            z, lam_g, lam_x = self._warm
-            zs, lgs = self.nlp.shift(z, lam_g)
-            self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
-        if self._fallback is not None:
-            z, lam_g, lam_x = self._fallback
-            zs, lgs = self.nlp.shift(z, lam_g)
-            self._fallback = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+        self._idle += 1  # the plan is shifted by as many intervals when the next solve runs
         force = float(self.levels[index])
         self._last = (x, force)
         self.stats.step_times.append(time.perf_counter() - t_start)
