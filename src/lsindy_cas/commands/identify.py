@@ -87,6 +87,11 @@ def run(args) -> int:
     elif not res.proven:            # time limit or Ctrl-C in the branch and bound
         print(f"search not proven: best admissible support found in {res.seconds:.1f} s "
               f"({res.nodes:,} nodes), optimality gap {res.gap:.3g}", file=sys.stderr)
+    rw = getattr(res, "reweighted", None)
+    if rw is not None:              # proven on the unweighted balance, weighted re-check cut short
+        print(f"search: support proven best on the unweighted balance; the noise-weighted "
+              f"re-check found no better one in {rw['seconds']:.1f} s ({rw['nodes']:,} nodes, "
+              "not proven)")
     print(model)
     if model.energy_scale_ == "relative":
         print("(no --scale record: add --scale TRAJ..., a short actuated run, for an absolute energy)")

@@ -16,6 +16,7 @@ from .dissipation import dissipation_columns, dissipation_library, fold_scale, f
 from ..mechanics.legendre import legendre
 from ..symbolic.library import Library
 from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
+from .reweight import reselect
 from .selection import select
 from .status import assess
 from .standard_errors import coefficient_errors
@@ -74,6 +75,11 @@ class LagrangianSINDy:
         ``theta_dot**2``, ``theta1_dot*theta2_dot``; Coulomb ``Abs(x_dot)``): the balance becomes
         dE/dt = P − q̇·∂R/∂q̇ and the equations of motion gain the friction forces −∂R/∂q̇
         (:mod:`lsindy_cas.identify.dissipation`).  Terms the data do not support come out zero.
+    time_limit : float, optional
+        Seconds allowed to each branch-and-bound search (libraries too large to score every
+        support); when it runs out the best admissible support found is kept, marked not proven
+        with its gap (``search_``).  The re-selection on the noise-weighted balance gets at most
+        as long as the first search took (:mod:`lsindy_cas.identify.reweight`).
 
     Attributes (after ``fit``)
     --------------------------
@@ -108,13 +114,8 @@ class LagrangianSINDy:
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
                  window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
                  hold: str = "auto", dissipation=None, time_limit: float | None = None):
-        self.library = library
-        self.n_terms = n_terms
-        self.prior = prior
-        self.form = form
-        self.window = window
-        self.smoothing = smoothing
-        self.max_terms = max_terms
+        self.library, self.n_terms, self.prior, self.form = library, n_terms, prior, form
+        self.window, self.smoothing, self.max_terms = window, smoothing, max_terms
         self.hold, self.dissipation, self.time_limit = hold, dissipation, time_limit
 
     # ------------------------------------------------------------------ fitting
@@ -301,7 +302,8 @@ class LagrangianSINDy:
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
         if state_var is not None and bal.per_sample:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
-                                                      scale_system, excluded, row_gradients(bal))
+                                                      scale_system, excluded, row_gradients(bal),
+                                                      progress)
         # 7. dissipation: drop the terms the data do not support and fit again without them
         if bal.dissipation is not None:
             keep = prune(bal, coef)
@@ -348,7 +350,8 @@ class LagrangianSINDy:
         lib = self._active_dissipation()
         return fold_scale(bal, scale, dissipation_columns(lib, states, scale, noise))
 
-    def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads):
+    def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads,
+                progress=None):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
         weighted balance (same k), and correct the coefficients for regressor noise."""
         coef, support, sel_w, changed = sel.coef, sel.support, sel, True
@@ -359,13 +362,10 @@ class LagrangianSINDy:
                                   noise=self._state_noise)
             if changed and it < _RESELECT_PASSES:      # re-select on the weighted balance (same k)
                 adm = Admissibility.for_balance(self.library, bal_w, forced, scale_system, excluded)
-                try:
-                    sel_w = select(bal_w, forced, n_terms=sel.k, scale_system=scale_system,
-                                   admissible=adm)
-                except ValueError:      # nothing passes with these weights: keep the support
-                    changed = False
-                else:
-                    changed, support = sel_w.support != support, sel_w.support
+                sel_w, changed = reselect(bal_w, forced, sel_w, scale_system=scale_system,
+                                          admissible=adm, time_limit=self.time_limit,
+                                          progress=progress)
+                support = sel_w.support
             coef = _corrected(bal_w, grads, w, state_var, support, scale_system)
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
         return coef, bal_w, sel_w, adm

@@ -61,6 +61,8 @@ def model_to_dict(model) -> dict:
     if res is not None:            # how the support was found, and whether it is proven best
         out["search"] = {"method": res.method, "proven": bool(res.proven), "gap": float(res.gap),
                          "nodes": int(res.nodes), "supports_scored": int(res.n_supports)}
+        if getattr(res, "reweighted", None) is not None:   # the weighted re-check, cut short
+            out["search"]["reweighted"] = dict(res.reweighted)
     elif getattr(model, "_loaded_search", None) is not None:
         out["search"] = model._loaded_search
     diag = getattr(model, "diagnostics_", None)
