@@ -37,8 +37,8 @@ def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed, 
     s = _Search(A, b, k, forced, None, D, None, 0.0, 5).start(screen)
     order = s.order
     # expand the root and one child, and check each child's bound against all of its leaves
-    nodes = s.children(_Node((), 0.0, 1.0))
-    nodes += s.children(nodes[0])
+    nodes = s.children(_Node((), 0.0, 1.0), batch=False)
+    nodes += s.children(nodes[0], batch=False)
     for ch in nodes:
         left = s.r - len(ch.pos)
         allowed = range(ch.pos[-1] + 1, len(order))
@@ -113,10 +113,10 @@ def test_time_limit_returns_best_so_far_not_proven(rng, monkeypatch):
     monkeypatch.setattr(bnb.time, "monotonic", clock)
     A = rng.normal(size=(40, 14))
     b = rng.normal(size=40)
-    res = branch_and_bound(A, b, 3, time_limit=5.0)
+    res = branch_and_bound(A, b, 4, time_limit=5.0)      # 4 terms: more than 14 nodes
     assert not res.proven and not res.interrupted
     assert res.gap >= 0 and res.nodes >= 1
-    ex = best_subset(A, b, 3)
+    ex = best_subset(A, b, 4)
     assert res.score >= ex.score - 1e-12       # never better than the optimum
 
 
@@ -125,16 +125,16 @@ def test_keyboard_interrupt_returns_best_so_far(rng, monkeypatch):
     calls = {"n": 0}
     original = bnb._Search.children
 
-    def children(self, node):
+    def children(self, node, batch=True):
         calls["n"] += 1
         if calls["n"] > 12:
             raise KeyboardInterrupt
-        return original(self, node)
+        return original(self, node, batch)
 
     monkeypatch.setattr(bnb._Search, "children", children)
     A = rng.normal(size=(40, 14))
     b = rng.normal(size=40)
-    res = branch_and_bound(A, b, 3)
+    res = branch_and_bound(A, b, 4)                       # 4 terms: more than 12 nodes
     assert res.interrupted and not res.proven
     assert res.gap >= 0
 

@@ -62,6 +62,8 @@ SCORE_RESOLUTION = 1e-12
 SKIP_TOL = 1e-13
 _POOL = 2000               # scored leaves kept as runners-up (best first)
 _MAX_OPEN = 2_000_000      # open nodes kept (memory, ~0.5 GB): beyond, stop as not proven
+_MAX_QUEUED = 4_000_000    # leaves queued (~0.25 GB); beyond, the worse half dropped (not proven)
+_EAGER = 1                 # hopeful leaves of a batch examined at once (the rest queued)
 
 
 @dataclass
@@ -140,12 +142,14 @@ class _Search:
         self.lower_pruned = np.inf
         self.current = None
         self.best_first, self.queue, self.n_queued = best_first, [], 0
+        self.queued_leaves, self.lower_dropped = 0, np.inf
         self.seen = set()                   # supports examined (shared by the trees of a search)
 
     def clone(self) -> "_Search":
         """A second tree on the same problem, sharing the examined supports and candidates."""
         other = copy.copy(self)
         other.pool_S, other.pool_s, other.pool_n, other.queue = [], [], 0, []
+        other.queued_leaves, other.lower_dropped = 0, np.inf
         other.n_leaves = other.n_degenerate = other.nodes = other.n_examined = other.n_reducible = 0
         other.lower_pruned, other.current = np.inf, None
         return other
@@ -154,8 +158,9 @@ class _Search:
     def _score(self, explained):
         return np.clip(1.0 - explained / self.bb, 0.0, 1.0) if self.bb > 0 else np.zeros_like(explained)
 
-    def children(self, node: _Node):
-        """(positions, bounds, partial scores) of a node's non-leaf children, or scores its leaves."""
+    def children(self, node: _Node, batch: bool = True):
+        """A node's non-leaf children (with their bounds and partial scores), or None when it
+        scored its leaves itself: one term left, or two (``batch``: the pairs of every child)."""
         n, depth = len(self.order), len(node.pos)
         left = self.r - depth
         last = node.pos[-1] if node.pos else -1
@@ -175,7 +180,10 @@ class _Search:
             piv = np.diag(Gd)[:len(js)]
             partial = self._score(eI + cd[:len(js)] ** 2 / np.maximum(piv, 1e-300))
             stop = (1.0 - (self.incumbent - self.tol)) * self.bb if np.isfinite(self.incumbent) else np.inf
-            E = _suffix_explained(Gd, cd, stop - eI)[:len(js)]
+            if batch and left == 2 and not np.isfinite(self.incumbent):
+                E = np.full(len(js), np.nan)     # bounds would neither prune nor order the batch
+            else:
+                E = _suffix_explained(Gd, cd, stop - eI)[:len(js)]
             bounds = np.where(np.isnan(E), node.bound, self._score(eI + np.nan_to_num(E)))
             ok = piv >= DEGENERACY_TOL
         else:
@@ -197,16 +205,38 @@ class _Search:
         bounds = np.maximum(bounds, node.bound)       # a child's superset is inside the parent's
         # a child whose superset misses a required set holds no admissible support
         ok = ok & (cov_u[:, None] | self.cov[:, self.order[js]] | self.suffix_cov[:, js + 1]).all(axis=0)
+        if batch and left == 2:
+            self._grandchild_leaves(U, cov_u, js[ok], bounds[ok])
+            return None
         return [(_Node(node.pos + (int(j),), float(bd), float(pa)))
                 for j, bd, pa, o in zip(js, bounds, partial, ok) if o]
 
     # ----------------------------------------------------------------- leaves
-    def leaves(self, U, js):
-        """Score the supports U + order[j] and visit those that could beat the incumbent."""
+    def _grandchild_leaves(self, U, cov_u, js, bounds):
+        """Two terms left: the children ``js`` (bounds ``bounds``) expanded at once — every pair
+        (j, j2 > j) of a child not pruned by its bound is scored in one batch (one call instead
+        of one per child: the per-call overhead dominated on wide libraries)."""
+        keep = bounds < self.incumbent - self.tol
+        if (~keep).any():
+            self.lower_pruned = min(self.lower_pruned, float(bounds[~keep].min()))
+        js = js[keep]
         if not len(js):
             return
+        self.nodes += len(js)
+        n = len(self.order)
+        J1, J2 = np.nonzero(np.arange(n)[None, :] > js[:, None])
+        J1 = js[J1]
+        cover = (cov_u[:, None] | self.cov[:, self.order[J1]] | self.cov[:, self.order[J2]]).all(axis=0)
+        self.leaves(U, np.column_stack([J1[cover], J2[cover]]))
+
+    def leaves(self, U, js):
+        """Score the supports U + order[js] (js: positions, or rows of positions) and visit those
+        that could beat the incumbent."""
+        if not len(js):
+            return
+        ext = self.order[js]
         S = np.sort(np.hstack([np.broadcast_to(np.array(U, np.int64), (len(js), len(U))),
-                               self.order[js][:, None]]), axis=1)
+                               ext.reshape(len(js), -1)]), axis=1)
         scores, deg = np.empty(len(S)), np.empty(len(S), dtype=bool)
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             _score_chunks(self.G, self.GD, self.c, self.bb, S, scores, deg, None)
@@ -222,14 +252,25 @@ class _Search:
         hopeful = order[scores[order] < self.incumbent - self.tol]
         if len(hopeful) < len(order):
             self.lower_pruned = min(self.lower_pruned, float(scores[order[len(hopeful)]]))
-        if self.best_first:        # queued: examined when no open node's bound is below them
-            for idx in hopeful:
-                heapq.heappush(self.queue, (float(scores[idx]), self.n_queued, tuple(S[idx].tolist())))
-                self.n_queued += 1
-            return
-        for idx in hopeful:
-            if self.examine(tuple(int(j) for j in S[idx]), float(scores[idx])):
-                return
+        # the batch's best hopeful leaves are examined at once (none when best_first) - a first
+        # incumbent early, or at once the exact fit of clean data -, the others are queued:
+        # examined when no open node's bound is below them (one queue entry per batch)
+        n_eager, i = (0 if self.best_first else _EAGER), 0
+        while i < min(n_eager, len(hopeful)):
+            i += 1
+            if self.examine(tuple(int(j) for j in S[hopeful[i - 1]]), float(scores[hopeful[i - 1]])):
+                break
+        rest = hopeful[i:]
+        late = scores[rest] >= self.incumbent - self.tol       # beaten by a new incumbent
+        if late.any():
+            self.lower_pruned = min(self.lower_pruned, float(scores[rest[late]].min()))
+        rest = rest[~late]
+        if len(rest):
+            heapq.heappush(self.queue, (float(scores[rest[0]]), self.n_queued, 0, S[rest], scores[rest]))
+            self.n_queued += 1
+            self.queued_leaves += len(rest)
+            if self.queued_leaves > _MAX_QUEUED:
+                self._trim_queue()
 
     def examine(self, S: tuple, score: float) -> bool:
         """Visit one scored leaf through the rules; True when it becomes the incumbent."""
@@ -254,6 +295,19 @@ class _Search:
         if cand.admissible:
             self.incumbent, self.winner, self.null_dim = cand.score, cand, nd
         return bool(cand.admissible)
+
+    def _trim_queue(self):
+        """Keep the best half of the queued leaves; the smallest score dropped stays a lower
+        bound (a dropped leaf is never examined: below the incumbent it leaves a gap)."""
+        S = np.vstack([SS[i:] for _, _, i, SS, _ in self.queue])
+        s = np.concatenate([ss[i:] for _, _, i, _, ss in self.queue])
+        order = np.argsort(s, kind="stable")
+        keep, drop = order[:_MAX_QUEUED // 2], order[_MAX_QUEUED // 2:]
+        if len(drop):
+            self.lower_dropped = min(self.lower_dropped, float(s[drop[0]]))
+        self.queue = [(float(s[keep[0]]), self.n_queued, 0, S[keep], s[keep])] if len(keep) else []
+        self.n_queued += 1
+        self.queued_leaves = len(keep)
 
     def _trim_pool(self):
         S, s = np.vstack(self.pool_S), np.concatenate(self.pool_s)
@@ -285,11 +339,16 @@ class _Search:
             # count as 0, as in the nodes' keys)
             if self.queue and (not heap or (self.queue[0][0] if self.queue[0][0] > self.tol else 0.0)
                                <= heap[0][0][0]):
-                score, _, S = heapq.heappop(self.queue)
-                if score >= self.incumbent - self.tol:
+                score, _, i, SS, ss = heapq.heappop(self.queue)
+                self.queued_leaves -= 1
+                if score >= self.incumbent - self.tol:     # so are the rest of its batch
                     self.lower_pruned = min(self.lower_pruned, score)
-                else:
-                    self.examine(S, score)
+                    self.queued_leaves -= len(ss) - i - 1
+                    continue
+                if i + 1 < len(ss):
+                    heapq.heappush(self.queue, (float(ss[i + 1]), self.n_queued, i + 1, SS, ss))
+                    self.n_queued += 1
+                self.examine(tuple(int(j) for j in SS[i]), score)
                 continue
             node = heapq.heappop(heap)[2]
             if node.bound >= self.incumbent - self.tol:
@@ -306,7 +365,7 @@ class _Search:
                 key = (ch.bound if ch.bound > self.tol else 0.0, -len(ch.pos), ch.pos[-1], ch.partial)
                 heapq.heappush(heap, (key, self.counter, ch))
                 self.counter += 1
-            if len(heap) + len(self.queue) > _MAX_OPEN:
+            if len(heap) > _MAX_OPEN:
                 return "full"
             if time.monotonic() > until:
                 return "open" if heap or self.queue else "done"
@@ -314,7 +373,7 @@ class _Search:
 
     def lower(self) -> float:
         """Smallest bound or score left unexplored or pruned: no unexamined support scores less."""
-        return min([self.lower_pruned] + [h[2].bound for h in self.heap] + [q[0] for q in self.queue[:1]]
+        return min([self.lower_pruned, self.lower_dropped] + [h[2].bound for h in self.heap] + [q[0] for q in self.queue[:1]]
                    + ([self.current.bound] if self.current is not None else []))
 
 
@@ -352,9 +411,10 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         :func:`structure_of` ``(admissible)``: found when ``admissible`` is an
         :class:`~lsindy_cas.identify.admissibility.Admissibility`).
     best_first : bool
-        Queue scored leaves and examine them only when no open node's bound is below them (the
-        first admissible one is then proven at once); default: examine each node's leaves as
-        soon as they are scored, which finds an incumbent earlier when bounds are weak.
+        Queue every scored leaf and examine it only when no open node's bound is below it (the
+        first admissible one is then proven at once); default: examine the best leaf of each
+        batch as soon as it is scored and queue the others, which finds an incumbent earlier when
+        bounds are weak (and, on exact data, the exact fit as soon as its batch is scored).
 
     Returns
     -------
@@ -389,6 +449,8 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
             raise ValueError("the basis-pursuit order needs driven data (b) and a solvable "
                              "linear programme")
     lower, proven, seconds, interrupted = drive(trees, time_limit, progress)
+    # leaves dropped from a full queue were never examined: proven only if none could win
+    proven = proven and all(t.lower_dropped >= s.incumbent - tol for t in trees)
     for t in trees[1:]:
         s.pool_S += t.pool_S
         s.pool_s += t.pool_s
