@@ -142,14 +142,14 @@ class _Search:
         self.lower_pruned = np.inf
         self.current = None
         self.best_first, self.queue, self.n_queued = best_first, [], 0
-        self.queued_leaves, self.lower_dropped = 0, np.inf
+        self.queued_leaves, self.lower_dropped, self.record = 0, np.inf, np.inf
         self.seen = set()                   # supports examined (shared by the trees of a search)
 
     def clone(self) -> "_Search":
         """A second tree on the same problem, sharing the examined supports and candidates."""
         other = copy.copy(self)
         other.pool_S, other.pool_s, other.pool_n, other.queue = [], [], 0, []
-        other.queued_leaves, other.lower_dropped = 0, np.inf
+        other.queued_leaves, other.lower_dropped, other.record = 0, np.inf, np.inf
         other.n_leaves = other.n_degenerate = other.nodes = other.n_examined = other.n_reducible = 0
         other.lower_pruned, other.current = np.inf, None
         return other
@@ -252,11 +252,12 @@ class _Search:
         hopeful = order[scores[order] < self.incumbent - self.tol]
         if len(hopeful) < len(order):
             self.lower_pruned = min(self.lower_pruned, float(scores[order[len(hopeful)]]))
-        # the batch's best hopeful leaves are examined at once (none when best_first) - a first
-        # incumbent early, or at once the exact fit of clean data -, the others are queued:
-        # examined when no open node's bound is below them (one queue entry per batch)
+        # the batch's best hopeful leaf is examined at once when it scores below every leaf
+        # examined so far (never when best_first): a first incumbent early; the others are queued,
+        # examined when no open node's bound is below them (one queue entry per batch; an exact
+        # fit, at round-off, at once: the heap keys count such bounds as 0)
         n_eager, i = (0 if self.best_first else _EAGER), 0
-        while i < min(n_eager, len(hopeful)):
+        while i < min(n_eager, len(hopeful)) and scores[hopeful[i]] < self.record:
             i += 1
             if self.examine(tuple(int(j) for j in S[hopeful[i - 1]]), float(scores[hopeful[i - 1]])):
                 break
@@ -278,6 +279,7 @@ class _Search:
             return False
         self.seen.add(S)
         self.n_examined += 1
+        self.record = min(self.record, score)
         if reducible(self.G, self.c, np.array([S]))[0]:
             self.n_reducible += 1
             if self.n_reducible <= self.n_report:
@@ -318,8 +320,9 @@ class _Search:
     def start(self, screen) -> "_Search":
         """This search's tree over the free terms in library order (False), the screening order
         (True) or the basis-pursuit order ("l1", driven data; None when it cannot be had)."""
-        if screen == "l1":
-            self.order = l1_order(self.Af, self.bf, self.free, self.forced)
+        if screen in ("l1", "l1-sparse"):      # "l1-sparse": only when it finds a sparse fit
+            self.order = l1_order(self.Af, self.bf, self.free, self.forced,
+                                  max_terms=2 * self.r if screen == "l1-sparse" else None)
             if self.order is None:
                 return None
         else:
@@ -403,7 +406,9 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         The order of the free terms: the library's (False; a polynomial library lists low degrees
         first), :func:`screening_order` (True), the basis-pursuit order (:func:`l1_order`,
         "l1", driven data), or all of them searched in turn sharing the incumbent, the first one
-        exhausted proving it ("auto", default).  The answer is the same; which order finds the
+        exhausted proving it ("auto", default; the basis-pursuit tree only when basis pursuit
+        finds a sparse fit or the system is not underdetermined, see ``max_terms`` of
+        :func:`l1_order`).  The answer is the same; which order finds the
         winner first depends on the data (benchmarks/bench_bnb.py: the library order on the
         paper's 1 s runs, the basis-pursuit order on rich data, where it puts the true terms first).
     structure : (banned, required), optional
@@ -441,7 +446,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         structure = structure_of(admissible, p)
     s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
     if screen == "auto":
-        trees = [s.start(False)] + [t for t in (s.clone().start("l1") if b is not None else None,
+        trees = [s.start(False)] + [t for t in (s.clone().start("l1-sparse") if b is not None else None,
                                                 s.clone().start(True)) if t is not None]
     else:
         trees = [s.start(screen if screen == "l1" else bool(screen))]
