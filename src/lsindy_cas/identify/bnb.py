@@ -17,19 +17,24 @@ the allowed terms from the *last* one backwards gives the residual of every suff
 passive data the smallest eigenvalue of a few nested suffixes bounds all children between them.
 
 Nodes are expanded best-first (lowest bound; among bounds at round-off, deepest first and then the
-lowest partial score, which makes the first descent the forward-stepwise model).  Leaves are scored
-exactly as the exhaustive search scores them (:func:`lsindy_cas.identify.search._score_chunks`) and
-visited best-first through the same rules (degenerate, reducible, then ``admissible``): a leaf
-becomes the incumbent only when it passes them all.  A subtree is pruned when its bound is not below
-the incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the resolution of a Gram-based
-score): no support in it can beat the incumbent by more than round-off.
+lowest partial score, which makes the first descent the forward-stepwise model).  A node with two
+terms left scores the leaves of all its children in one batch
+(:mod:`~lsindy_cas.identify.bnb_leaves`), exactly as the exhaustive search scores them
+(:func:`lsindy_cas.identify.search._score_chunks`).  Leaves are visited through the same rules
+(degenerate, reducible, then ``admissible``): a leaf becomes the incumbent only when it passes them
+all.  A batch's best leaf is examined at once when it beats every leaf examined so far; the others
+are queued and examined when no open node's bound is below them (an exact fit, at round-off, at
+once).  With rank-deficient data every bound is 0 until deep: examining every leaf as scored
+(~1 ms each) kept the paper's double pendulum from being found.  A subtree is pruned when its
+bound is not below the incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the
+resolution of a Gram-based score): none of its supports beats the incumbent beyond round-off.
 
 Before any bound, the admissibility rules prune exactly (:func:`structure_of`): terms no energy has
 are left out, and a subtree whose terms miss every term with ∂²θ/∂q̇_i² ≠ 0 for some coordinate i
-(no positive-definite kinetic part) is dropped.  By default two trees are searched in turn, in the
-library order and the screening order, sharing the incumbent (the first exhausted proves it).
-Candidates are fitted on the triangular factor R of A = QR (p rows instead of m); the winner is
-refitted on A, as the exhaustive search fits it.
+(no positive-definite kinetic part) is dropped.  By default the trees in the library order, the
+basis-pursuit order (when it finds a sparse fit) and the screening order are searched in turn,
+sharing the incumbent (the first exhausted proves it).  Candidates are fitted on the factor R of
+A = QR (p rows instead of m); the winner is refitted on A, as the exhaustive search fits it.
 
 Certificate: ``gap`` = incumbent − (smallest bound left unexplored or pruned), clipped at 0; the
 search is *proven* when the tree was exhausted (then gap ≤ tol).  A time limit or Ctrl-C stops the
@@ -49,6 +54,8 @@ from .._validate import check_real
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
 from .bnb_drive import drive
+from .bnb_leaves import SKIP_TOL, pair_positions, passive_bounds, trim_queue
+from .bnb_leaves import suffix_explained as _suffix_explained
 from .screening import _Basis, l1_order, screening_order, structure_of
 from .search import DEGENERACY_TOL, Candidate, SearchResult, _score_chunks
 
@@ -57,13 +64,11 @@ __all__ = ["branch_and_bound", "screening_order", "structure_of", "SCORE_RESOLUT
 # Scores are relative residuals (or eigenvalues of a unit-diagonal Gram matrix) in [0, 1] computed
 # from Gram matrices: two of them closer than this are a round-off tie.
 SCORE_RESOLUTION = 1e-12
-# Pivots of a unit-diagonal Gram matrix below this are exact linear dependence (round-off of n·eps):
-# such a column adds nothing to the span of a superset (its contribution is < 1e-18 of ‖b‖²).
-SKIP_TOL = 1e-13
 _POOL = 2000               # scored leaves kept as runners-up (best first)
 _MAX_OPEN = 2_000_000      # open nodes kept (memory, ~0.5 GB): beyond, stop as not proven
 _MAX_QUEUED = 4_000_000    # leaves queued (~0.25 GB); beyond, the worse half dropped (not proven)
 _EAGER = 1                 # hopeful leaves of a batch examined at once (the rest queued)
+_LIBRARY_SLICES = 4        # library-tree slices per screening slice when BP finds no sparse fit
 
 
 @dataclass
@@ -71,35 +76,6 @@ class _Node:
     pos: tuple              # positions (in the screening order) of the chosen free terms
     bound: float            # lower bound on every score in the subtree
     partial: float          # score of forced ∪ chosen terms alone (ordering only)
-
-
-def _suffix_explained(Gd, cd, stop_at: float) -> np.ndarray:
-    """Driven: explained ‖y‖² of every suffix of the columns of ``Gd`` (index i: columns i..n−1).
-
-    A Cholesky sweep from the last column backwards; exactly dependent columns (pivot < SKIP_TOL)
-    add nothing.  Stops once the explained part reaches ``stop_at`` or the span is exhausted; the
-    suffixes not reached get NaN (or, when the span is exhausted, the final value).
-    """
-    n = len(cd)
-    S, v = Gd.copy(), cd.copy()
-    out = np.full(n, np.nan)
-    E = 0.0
-    for t in range(n - 1, -1, -1):
-        d = S[t, t]
-        if d > SKIP_TOL:
-            sd = np.sqrt(d)
-            yt = v[t] / sd
-            E += yt * yt
-            if t:
-                l = S[:t, t] / sd
-                S[:t, :t] -= np.outer(l, l)
-                v[:t] -= l * yt
-        out[t] = E
-        if t and (E >= stop_at or np.diag(S)[:t].max() <= SKIP_TOL):
-            if np.diag(S)[:t].max() <= SKIP_TOL:
-                out[:t] = E
-            break
-    return out
 
 
 class _Search:
@@ -187,20 +163,7 @@ class _Search:
             bounds = np.where(np.isnan(E), node.bound, self._score(eI + np.nan_to_num(E)))
             ok = piv >= DEGENERACY_TOL
         else:
-            bounds = np.full(len(js), node.bound)
-            idx = np.hstack([np.broadcast_to(np.array(U, np.int64), (len(js), len(U))),
-                             self.order[js][:, None]])
-            partial = np.linalg.eigvalsh(self.G[idx[:, :, None], idx[:, None, :]])[:, 0]
-            length, done = left, np.zeros(len(js), dtype=bool)
-            while True:                       # nested suffixes of growing length bound the children
-                idx = list(U) + [int(j) for j in rest[len(rest) - length:]]
-                lam = np.linalg.eigvalsh(self.G[np.ix_(idx, idx)])[0]
-                new = (np.arange(len(js)) + length >= len(rest)) & ~done   # child's suffix ⊂ this one
-                bounds[new] = np.maximum(bounds[new], lam)
-                done |= new
-                if length >= len(rest):
-                    break
-                length = min(len(rest), 2 * length)
+            bounds, partial = passive_bounds(self.G, U, self.order[js], rest, left, node.bound)
             ok = np.ones(len(js), dtype=bool)
         bounds = np.maximum(bounds, node.bound)       # a child's superset is inside the parent's
         # a child whose superset misses a required set holds no admissible support
@@ -223,9 +186,7 @@ class _Search:
         if not len(js):
             return
         self.nodes += len(js)
-        n = len(self.order)
-        J1, J2 = np.nonzero(np.arange(n)[None, :] > js[:, None])
-        J1 = js[J1]
+        J1, J2 = pair_positions(js, len(self.order))
         cover = (cov_u[:, None] | self.cov[:, self.order[J1]] | self.cov[:, self.order[J2]]).all(axis=0)
         self.leaves(U, np.column_stack([J1[cover], J2[cover]]))
 
@@ -252,10 +213,9 @@ class _Search:
         hopeful = order[scores[order] < self.incumbent - self.tol]
         if len(hopeful) < len(order):
             self.lower_pruned = min(self.lower_pruned, float(scores[order[len(hopeful)]]))
-        # the batch's best hopeful leaf is examined at once when it scores below every leaf
-        # examined so far (never when best_first): a first incumbent early; the others are queued,
-        # examined when no open node's bound is below them (one queue entry per batch; an exact
-        # fit, at round-off, at once: the heap keys count such bounds as 0)
+        # the batch's best leaf is examined at once when it beats every leaf examined so far (not
+        # when best_first): a first incumbent early; the others are queued, one entry per batch,
+        # examined when no open node's bound is below them (an exact fit, at round-off, at once)
         n_eager, i = (0 if self.best_first else _EAGER), 0
         while i < min(n_eager, len(hopeful)) and scores[hopeful[i]] < self.record:
             i += 1
@@ -268,8 +228,7 @@ class _Search:
         rest = rest[~late]
         if len(rest):
             heapq.heappush(self.queue, (float(scores[rest[0]]), self.n_queued, 0, S[rest], scores[rest]))
-            self.n_queued += 1
-            self.queued_leaves += len(rest)
+            self.n_queued, self.queued_leaves = self.n_queued + 1, self.queued_leaves + len(rest)
             if self.queued_leaves > _MAX_QUEUED:
                 self._trim_queue()
 
@@ -298,18 +257,9 @@ class _Search:
             self.incumbent, self.winner, self.null_dim = cand.score, cand, nd
         return bool(cand.admissible)
 
-    def _trim_queue(self):
-        """Keep the best half of the queued leaves; the smallest score dropped stays a lower
-        bound (a dropped leaf is never examined: below the incumbent it leaves a gap)."""
-        S = np.vstack([SS[i:] for _, _, i, SS, _ in self.queue])
-        s = np.concatenate([ss[i:] for _, _, i, _, ss in self.queue])
-        order = np.argsort(s, kind="stable")
-        keep, drop = order[:_MAX_QUEUED // 2], order[_MAX_QUEUED // 2:]
-        if len(drop):
-            self.lower_dropped = min(self.lower_dropped, float(s[drop[0]]))
-        self.queue = [(float(s[keep[0]]), self.n_queued, 0, S[keep], s[keep])] if len(keep) else []
-        self.n_queued += 1
-        self.queued_leaves = len(keep)
+    def _trim_queue(self):       # keep the best half (the smallest score dropped stays a bound)
+        self.queue, dropped, self.queued_leaves = trim_queue(self.queue, _MAX_QUEUED // 2, self.n_queued)
+        self.n_queued, self.lower_dropped = self.n_queued + 1, min(self.lower_dropped, dropped)
 
     def _trim_pool(self):
         S, s = np.vstack(self.pool_S), np.concatenate(self.pool_s)
@@ -376,7 +326,8 @@ class _Search:
 
     def lower(self) -> float:
         """Smallest bound or score left unexplored or pruned: no unexamined support scores less."""
-        return min([self.lower_pruned, self.lower_dropped] + [h[2].bound for h in self.heap] + [q[0] for q in self.queue[:1]]
+        return min([self.lower_pruned, self.lower_dropped] + [h[2].bound for h in self.heap]
+                   + [q[0] for q in self.queue[:1]]
                    + ([self.current.bound] if self.current is not None else []))
 
 
@@ -445,15 +396,18 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     if structure is None:
         structure = structure_of(admissible, p)
     s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
+    slices = None
     if screen == "auto":
-        trees = [s.start(False)] + [t for t in (s.clone().start("l1-sparse") if b is not None else None,
-                                                s.clone().start(True)) if t is not None]
+        l1 = s.clone().start("l1-sparse") if b is not None else None
+        trees = [s.start(False)] + [t for t in (l1, s.clone().start(True)) if t is not None]
+        if b is not None and l1 is None:    # paper runs (bench_bnb): the library order finds it
+            slices = [_LIBRARY_SLICES] + [1] * (len(trees) - 1)
     else:
         trees = [s.start(screen if screen == "l1" else bool(screen))]
         if trees[0] is None:
             raise ValueError("the basis-pursuit order needs driven data (b) and a solvable "
                              "linear programme")
-    lower, proven, seconds, interrupted = drive(trees, time_limit, progress)
+    lower, proven, seconds, interrupted = drive(trees, time_limit, progress, slices)
     # leaves dropped from a full queue were never examined: proven only if none could win
     proven = proven and all(t.lower_dropped >= s.incumbent - tol for t in trees)
     for t in trees[1:]:
