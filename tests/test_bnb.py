@@ -322,3 +322,19 @@ def test_visit_modes_agree_with_exhaustive_under_admissibility(best_first):
         bb = branch_and_bound(A, b, k, admissible=admissible, best_first=best_first)
         assert bb.support == ex.support and bb.proven
         np.testing.assert_allclose(bb.coef, ex.coef, rtol=1e-9, atol=1e-12)
+
+
+def test_window_visit_order_agrees_with_exhaustive():
+    """The library tree visited window-first (every prefix over the first N terms before one using
+    term N+1) exhausts to the exhaustive search's support, rank-deficient or not."""
+    from lsindy_cas.identify.bnb_drive import drive
+    rng = np.random.default_rng(8)
+    for m in (9, 40):                                # fewer rows than terms, and more
+        for _ in range(6):
+            p, k = 14, int(rng.integers(3, 6))
+            A, b = rng.normal(size=(m, p)), rng.normal(size=m)
+            ex = best_subset(A, b, k)
+            s = _Search(A, b, k, [], None, None, None, 1e-12, 5).start(False, window=True)
+            lower, proven, _, _ = drive([s], None, None)
+            assert proven and s.winner.support == ex.support
+            assert s.winner.score == pytest.approx(ex.score, rel=1e-8, abs=1e-12)

@@ -267,9 +267,11 @@ class _Search:
         self.pool_S, self.pool_s, self.pool_n = [S[keep]], [s[keep]], len(keep)
 
     # ----------------------------------------------------------------- search
-    def start(self, screen) -> "_Search":
+    def start(self, screen, window: bool = False) -> "_Search":
         """This search's tree over the free terms in library order (False), the screening order
-        (True) or the basis-pursuit order ("l1", driven data; None when it cannot be had)."""
+        (True) or the basis-pursuit order ("l1", driven data; None when it cannot be had).  Among
+        nodes bounded at round-off, depth first (lexicographic), or with ``window`` the node whose
+        last term comes first: every prefix over the first N terms before one using term N+1."""
         if screen in ("l1", "l1-sparse"):      # "l1-sparse": only when it finds a sparse fit
             self.order = l1_order(self.Af, self.bf, self.free, self.forced,
                                   max_terms=2 * self.r if screen == "l1-sparse" else None)
@@ -278,6 +280,7 @@ class _Search:
         else:
             self.order = (screening_order(self.G, self.c, self.forced, self.free, self.k, self.GD)
                           if screen else np.array(self.free, dtype=np.int64))
+        self.window = window
         oc = self.cov[:, self.order]
         self.suffix_cov = np.zeros((len(oc), len(self.order) + 1), dtype=bool)
         self.suffix_cov[:, :-1] = np.flip(np.logical_or.accumulate(np.flip(oc, 1), axis=1), 1)
@@ -315,7 +318,9 @@ class _Search:
                 if ch.bound >= self.incumbent - self.tol:
                     self.lower_pruned = min(self.lower_pruned, ch.bound)
                     continue
-                key = (ch.bound if ch.bound > self.tol else 0.0, -len(ch.pos), ch.pos[-1], ch.partial)
+                b0 = ch.bound if ch.bound > self.tol else 0.0
+                key = ((b0, ch.pos[-1], -len(ch.pos), ch.partial) if self.window
+                       else (b0, -len(ch.pos), ch.pos[-1], ch.partial))
                 heapq.heappush(heap, (key, self.counter, ch))
                 self.counter += 1
             if len(heap) > _MAX_OPEN:
@@ -399,9 +404,10 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     slices = None
     if screen == "auto":
         l1 = s.clone().start("l1-sparse") if b is not None else None
-        trees = [s.start(False)] + [t for t in (l1, s.clone().start(True)) if t is not None]
+        trees = [s.start(False), s.clone().start(False, window=True)]
+        trees += [t for t in (l1, s.clone().start(True)) if t is not None]
         if b is not None and l1 is None:    # paper runs (bench_bnb): the library order finds it
-            slices = [_LIBRARY_SLICES] + [1] * (len(trees) - 1)
+            slices = [_LIBRARY_SLICES] * 2 + [1] * (len(trees) - 2)
     else:
         trees = [s.start(screen if screen == "l1" else bool(screen))]
         if trees[0] is None:
