@@ -182,11 +182,15 @@ def estimator_cases(args, limit, rows):
     print(rows[-1], file=sys.stderr)
 
 
+def key_of(r):
+    return f"{r['case']} | {r['data']} | {r['method']}"
+
+
 COLS = ["case", "data", "method", "rows_cols", "found", "proven", "gap", "nodes", "supports_scored",
         "all_supports", "seconds", "note"]
 
 
-def markdown(rows, limit):
+def markdown(rows, limit, kept=()):
     def cell(v):
         if v is None:
             return ""
@@ -194,6 +198,9 @@ def markdown(rows, limit):
     lines = [f"Branch and bound without prior terms (time limit {limit:g} s per search)", "",
              "| " + " | ".join(COLS) + " |", "|" + "---|" * len(COLS)]
     lines += ["| " + " | ".join(cell(r.get(c)) for c in COLS) + " |" for r in rows]
+    if kept:
+        lines += ["", "Kept from the previous run (not re-run): "
+                  + "; ".join(f"{r['case']}, {r['data']}, {r['method']}" for r in kept) + "."]
     return "\n".join(lines) + "\n"
 
 
@@ -217,7 +224,7 @@ def main(argv=None):
     limit = args.time_limit or (15.0 if args.quick else 60.0)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows, t0 = [], time.perf_counter()
+    rows, kept, t0 = [], [], time.perf_counter()
     exact_cases(args, limit, rows)
     if not args.no_estimator:
         estimator_cases(args, limit, rows)
@@ -225,11 +232,13 @@ def main(argv=None):
         key = lambda r: (r["case"], r["data"], r["method"])           # noqa: E731
         new = {key(r): r for r in rows}
         old = json.loads((out / "bnb.json").read_text())["rows"]
+        kept = [r for r in old if key(r) not in new]
         rows = [new.pop(key(r), r) for r in old] + list(new.values())
-    md = markdown(rows, limit)
+    md = markdown(rows, limit, kept)
     print(md)
     (out / "bnb.json").write_text(json.dumps({"time_limit": limit, "quick": args.quick, "rows": rows,
-                                              "total_seconds": round(time.perf_counter() - t0, 1)},
+                                              "total_seconds": round(time.perf_counter() - t0, 1),
+                                              "kept_not_rerun": [key_of(r) for r in kept]},
                                              indent=2))
     (out / "bnb.md").write_text(md)
     print(f"written {out / 'bnb.json'}, {out / 'bnb.md'}", file=sys.stderr)
