@@ -289,12 +289,14 @@ class _Search:
 
     def advance(self, until: float) -> str:
         """Expand until the clock passes ``until``: "done" (tree exhausted), "open" or "full"."""
-        heap = self.heap
+        heap, owed = self.heap, False
         while heap or self.queue:
             # a queued leaf is examined when no open node's bound is below it (both at round-off
-            # count as 0, as in the nodes' keys)
-            if self.queue and (not heap or (self.queue[0][0] if self.queue[0][0] > self.tol else 0.0)
-                               <= heap[0][0][0]):
+            # count as 0, as in the nodes' keys), and (not best_first) the best one after each node
+            # expanded: the incumbent improves while bounds are weak
+            if self.queue and (not heap or owed or (self.queue[0][0] if self.queue[0][0] > self.tol
+                                                    else 0.0) <= heap[0][0][0]):
+                owed = False
                 score, _, i, SS, ss = heapq.heappop(self.queue)
                 self.queued_leaves -= 1
                 if score >= self.incumbent - self.tol:     # so are the rest of its batch
@@ -313,7 +315,7 @@ class _Search:
             self.current = node
             self.nodes += 1
             kids = self.children(node)
-            self.current = None
+            self.current, owed = None, not self.best_first
             for ch in kids or ():
                 if ch.bound >= self.incumbent - self.tol:
                     self.lower_pruned = min(self.lower_pruned, ch.bound)
