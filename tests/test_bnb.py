@@ -37,8 +37,8 @@ def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed, 
     s = _Search(A, b, k, forced, None, D, None, 0.0, 5).start(screen)
     order = s.order
     # expand the root and one child, and check each child's bound against all of its leaves
-    nodes = s.children(_Node((), 0.0, 1.0))
-    nodes += s.children(nodes[0])
+    nodes = s.children(_Node((), 0.0, 1.0), batch=False)
+    nodes += s.children(nodes[0], batch=False)
     for ch in nodes:
         left = s.r - len(ch.pos)
         allowed = range(ch.pos[-1] + 1, len(order))
@@ -113,10 +113,10 @@ def test_time_limit_returns_best_so_far_not_proven(rng, monkeypatch):
     monkeypatch.setattr(bnb.time, "monotonic", clock)
     A = rng.normal(size=(40, 14))
     b = rng.normal(size=40)
-    res = branch_and_bound(A, b, 3, time_limit=5.0)
+    res = branch_and_bound(A, b, 4, time_limit=5.0)      # 4 terms: more than 14 nodes
     assert not res.proven and not res.interrupted
     assert res.gap >= 0 and res.nodes >= 1
-    ex = best_subset(A, b, 3)
+    ex = best_subset(A, b, 4)
     assert res.score >= ex.score - 1e-12       # never better than the optimum
 
 
@@ -125,16 +125,16 @@ def test_keyboard_interrupt_returns_best_so_far(rng, monkeypatch):
     calls = {"n": 0}
     original = bnb._Search.children
 
-    def children(self, node):
+    def children(self, node, batch=True):
         calls["n"] += 1
         if calls["n"] > 12:
             raise KeyboardInterrupt
-        return original(self, node)
+        return original(self, node, batch)
 
     monkeypatch.setattr(bnb._Search, "children", children)
     A = rng.normal(size=(40, 14))
     b = rng.normal(size=40)
-    res = branch_and_bound(A, b, 3)
+    res = branch_and_bound(A, b, 4)                       # 4 terms: more than 12 nodes
     assert res.interrupted and not res.proven
     assert res.gap >= 0
 
@@ -254,3 +254,87 @@ def test_l1_order_puts_a_sparse_exact_fit_first(rng):
     assert l1_order(A, None, range(30)) is None
     forced = l1_order(A, b, [j for j in range(30) if j != 4], forced=[4])
     assert set(forced[:3].tolist()) == {11, 19, 27}
+
+
+def test_l1_order_gives_up_when_basis_pursuit_finds_no_sparse_fit(rng):
+    """Underdetermined (20 rows, 40 monomials t^j: numerically of low rank), 6-term exact fit:
+    with max_terms, None when the least-ℓ1 fit is dense (a vertex with a dozen terms, the true
+    t^38 among the zeros); an order when it is sparse (incoherent columns: recovered)."""
+    from lsindy_cas.identify.screening import l1_order
+    t = np.linspace(0, 1, 20)
+    A = np.column_stack([t ** j for j in range(40)])
+    b = A[:, [0, 7, 15, 22, 30, 38]] @ np.array([1.0, -2.0, 3.0, -1.0, 2.0, 1.0])
+    assert l1_order(A, b, range(40), max_terms=12) is None
+    assert sorted(l1_order(A, b, range(40)).tolist()) == list(range(40))
+    B = rng.normal(size=(20, 40))                                   # incoherent: BP recovers
+    b = B[:, [3, 17, 29]] @ np.array([1.0, -1.0, 2.0])
+    assert set(l1_order(B, b, range(40), max_terms=6)[:3].tolist()) == {3, 17, 29}
+
+
+@pytest.mark.parametrize("best_first", [False, True])
+def test_exact_fit_on_rank_deficient_data_found_and_proven(best_first):
+    """Fewer rows than terms (every superset bound is 0 until deep), a planted exact 5-term fit:
+    found and proven (gap at round-off), the exhaustive search's answer, in both visit modes."""
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(14, 22))
+    truth = (2, 6, 11, 15, 20)
+    b = A[:, truth] @ np.array([1.0, 2.0, -1.5, 0.7, 3.0])
+    ex = best_subset(A, b, 5)
+    bb = branch_and_bound(A, b, 5, best_first=best_first, screen=False)
+    assert ex.support == bb.support == truth
+    assert bb.proven and bb.gap <= 1e-12 and bb.score <= 1e-12
+
+
+def test_full_queue_drops_leaves_honestly(rng, monkeypatch):
+    """A queue capped at 4 leaves: dropped leaves are never examined, so a search that dropped
+    one scoring below its answer is not proven and its gap covers it; the exhaustive answer is
+    never beaten."""
+    import lsindy_cas.identify.bnb as bnb
+    monkeypatch.setattr(bnb, "_MAX_QUEUED", 4)
+    for seed in range(6):
+        r = np.random.default_rng(seed)
+        A, b = r.normal(size=(30, 10)), r.normal(size=30)
+        ex = best_subset(A, b, 3)
+        for best_first in (False, True):
+            res = branch_and_bound(A, b, 3, best_first=best_first, screen=False)
+            assert res.score >= ex.score - 1e-12
+            if res.proven:
+                assert res.support == ex.support
+            else:
+                assert res.gap >= res.score - ex.score - 1e-12
+
+
+@pytest.mark.parametrize("best_first", [False, True])
+def test_visit_modes_agree_with_exhaustive_under_admissibility(best_first):
+    """Leaves queued per batch (best of each examined at once or none): the best admissible
+    support is the exhaustive search's, with the rule rejecting the best few supports."""
+    rng = np.random.default_rng(21)
+    for _ in range(12):
+        m, p, k = int(rng.integers(12, 30)), int(rng.integers(8, 13)), int(rng.integers(2, 5))
+        A, b = rng.normal(size=(m, p)), rng.normal(size=m)
+        top = best_subset(A, b, k).supports[:3]
+        worse = {tuple(int(j) for j in S) for S in top}
+
+        def admissible(S, coef):
+            return S not in worse, "rejected"
+
+        ex = best_subset(A, b, k, admissible=admissible, max_visits=10**6)
+        bb = branch_and_bound(A, b, k, admissible=admissible, best_first=best_first)
+        assert bb.support == ex.support and bb.proven
+        np.testing.assert_allclose(bb.coef, ex.coef, rtol=1e-9, atol=1e-12)
+
+
+def test_window_visit_order_agrees_with_exhaustive():
+    """The library tree visited window-first (every prefix over the first N terms before one using
+    term N+1) exhausts to the exhaustive search's support, rank-deficient or not."""
+    from lsindy_cas.identify.bnb_drive import drive
+    rng = np.random.default_rng(8)
+    for m in (9, 40):                                # fewer rows than terms, and more
+        for _ in range(6):
+            p, k = 14, int(rng.integers(3, 6))
+            A, b = rng.normal(size=(m, p)), rng.normal(size=m)
+            ex = best_subset(A, b, k)
+            s = _Search(A, b, k, [], None, None, None, 1e-12, 5).start(False, window=True)
+            lower, proven, _, _ = drive([s], None, None)
+            assert proven and s.winner.support == ex.support
+            assert s.winner.score == pytest.approx(ex.score, rel=1e-8, abs=1e-12)

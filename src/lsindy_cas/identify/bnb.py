@@ -17,19 +17,24 @@ the allowed terms from the *last* one backwards gives the residual of every suff
 passive data the smallest eigenvalue of a few nested suffixes bounds all children between them.
 
 Nodes are expanded best-first (lowest bound; among bounds at round-off, deepest first and then the
-lowest partial score, which makes the first descent the forward-stepwise model).  Leaves are scored
-exactly as the exhaustive search scores them (:func:`lsindy_cas.identify.search._score_chunks`) and
-visited best-first through the same rules (degenerate, reducible, then ``admissible``): a leaf
-becomes the incumbent only when it passes them all.  A subtree is pruned when its bound is not below
-the incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the resolution of a Gram-based
-score): no support in it can beat the incumbent by more than round-off.
+lowest partial score, which makes the first descent the forward-stepwise model).  A node with two
+terms left scores the leaves of all its children in one batch
+(:mod:`~lsindy_cas.identify.bnb_leaves`), exactly as the exhaustive search scores them
+(:func:`lsindy_cas.identify.search._score_chunks`).  Leaves are visited through the same rules
+(degenerate, reducible, then ``admissible``): a leaf becomes the incumbent only when it passes them
+all.  A batch's best leaf is examined at once when it beats every leaf examined so far; the others
+are queued and examined when no open node's bound is below them (an exact fit, at round-off, at
+once).  With rank-deficient data every bound is 0 until deep: examining every leaf as scored
+(~1 ms each) kept the paper's double pendulum from being found.  A subtree is pruned when its
+bound is not below the incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the
+resolution of a Gram-based score): none of its supports beats the incumbent beyond round-off.
 
 Before any bound, the admissibility rules prune exactly (:func:`structure_of`): terms no energy has
 are left out, and a subtree whose terms miss every term with ∂²θ/∂q̇_i² ≠ 0 for some coordinate i
-(no positive-definite kinetic part) is dropped.  By default two trees are searched in turn, in the
-library order and the screening order, sharing the incumbent (the first exhausted proves it).
-Candidates are fitted on the triangular factor R of A = QR (p rows instead of m); the winner is
-refitted on A, as the exhaustive search fits it.
+(no positive-definite kinetic part) is dropped.  By default the trees in the library order, the
+basis-pursuit order (when it finds a sparse fit) and the screening order are searched in turn,
+sharing the incumbent (the first exhausted proves it).  Candidates are fitted on the factor R of
+A = QR (p rows instead of m); the winner is refitted on A, as the exhaustive search fits it.
 
 Certificate: ``gap`` = incumbent − (smallest bound left unexplored or pruned), clipped at 0; the
 search is *proven* when the tree was exhausted (then gap ≤ tol).  A time limit or Ctrl-C stops the
@@ -49,6 +54,8 @@ from .._validate import check_real
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
 from .bnb_drive import drive
+from .bnb_leaves import SKIP_TOL, pair_positions, passive_bounds, trim_queue
+from .bnb_leaves import suffix_explained as _suffix_explained
 from .screening import _Basis, l1_order, screening_order, structure_of
 from .search import DEGENERACY_TOL, Candidate, SearchResult, _score_chunks
 
@@ -57,11 +64,11 @@ __all__ = ["branch_and_bound", "screening_order", "structure_of", "SCORE_RESOLUT
 # Scores are relative residuals (or eigenvalues of a unit-diagonal Gram matrix) in [0, 1] computed
 # from Gram matrices: two of them closer than this are a round-off tie.
 SCORE_RESOLUTION = 1e-12
-# Pivots of a unit-diagonal Gram matrix below this are exact linear dependence (round-off of n·eps):
-# such a column adds nothing to the span of a superset (its contribution is < 1e-18 of ‖b‖²).
-SKIP_TOL = 1e-13
 _POOL = 2000               # scored leaves kept as runners-up (best first)
 _MAX_OPEN = 2_000_000      # open nodes kept (memory, ~0.5 GB): beyond, stop as not proven
+_MAX_QUEUED = 4_000_000    # leaves queued (~0.25 GB); beyond, the worse half dropped (not proven)
+_EAGER = 1                 # hopeful leaves of a batch examined at once (the rest queued)
+_LIBRARY_SLICES = 4        # library-tree slices per screening slice when BP finds no sparse fit
 
 
 @dataclass
@@ -69,35 +76,6 @@ class _Node:
     pos: tuple              # positions (in the screening order) of the chosen free terms
     bound: float            # lower bound on every score in the subtree
     partial: float          # score of forced ∪ chosen terms alone (ordering only)
-
-
-def _suffix_explained(Gd, cd, stop_at: float) -> np.ndarray:
-    """Driven: explained ‖y‖² of every suffix of the columns of ``Gd`` (index i: columns i..n−1).
-
-    A Cholesky sweep from the last column backwards; exactly dependent columns (pivot < SKIP_TOL)
-    add nothing.  Stops once the explained part reaches ``stop_at`` or the span is exhausted; the
-    suffixes not reached get NaN (or, when the span is exhausted, the final value).
-    """
-    n = len(cd)
-    S, v = Gd.copy(), cd.copy()
-    out = np.full(n, np.nan)
-    E = 0.0
-    for t in range(n - 1, -1, -1):
-        d = S[t, t]
-        if d > SKIP_TOL:
-            sd = np.sqrt(d)
-            yt = v[t] / sd
-            E += yt * yt
-            if t:
-                l = S[:t, t] / sd
-                S[:t, :t] -= np.outer(l, l)
-                v[:t] -= l * yt
-        out[t] = E
-        if t and (E >= stop_at or np.diag(S)[:t].max() <= SKIP_TOL):
-            if np.diag(S)[:t].max() <= SKIP_TOL:
-                out[:t] = E
-            break
-    return out
 
 
 class _Search:
@@ -140,12 +118,14 @@ class _Search:
         self.lower_pruned = np.inf
         self.current = None
         self.best_first, self.queue, self.n_queued = best_first, [], 0
+        self.queued_leaves, self.lower_dropped, self.record = 0, np.inf, np.inf
         self.seen = set()                   # supports examined (shared by the trees of a search)
 
     def clone(self) -> "_Search":
         """A second tree on the same problem, sharing the examined supports and candidates."""
         other = copy.copy(self)
         other.pool_S, other.pool_s, other.pool_n, other.queue = [], [], 0, []
+        other.queued_leaves, other.lower_dropped, other.record = 0, np.inf, np.inf
         other.n_leaves = other.n_degenerate = other.nodes = other.n_examined = other.n_reducible = 0
         other.lower_pruned, other.current = np.inf, None
         return other
@@ -154,8 +134,9 @@ class _Search:
     def _score(self, explained):
         return np.clip(1.0 - explained / self.bb, 0.0, 1.0) if self.bb > 0 else np.zeros_like(explained)
 
-    def children(self, node: _Node):
-        """(positions, bounds, partial scores) of a node's non-leaf children, or scores its leaves."""
+    def children(self, node: _Node, batch: bool = True):
+        """A node's non-leaf children (with their bounds and partial scores), or None when it
+        scored its leaves itself: one term left, or two (``batch``: the pairs of every child)."""
         n, depth = len(self.order), len(node.pos)
         left = self.r - depth
         last = node.pos[-1] if node.pos else -1
@@ -175,38 +156,48 @@ class _Search:
             piv = np.diag(Gd)[:len(js)]
             partial = self._score(eI + cd[:len(js)] ** 2 / np.maximum(piv, 1e-300))
             stop = (1.0 - (self.incumbent - self.tol)) * self.bb if np.isfinite(self.incumbent) else np.inf
-            E = _suffix_explained(Gd, cd, stop - eI)[:len(js)]
+            if batch and left == 2 and not np.isfinite(self.incumbent):
+                E = np.full(len(js), np.nan)     # bounds would neither prune nor order the batch
+            else:
+                E = _suffix_explained(Gd, cd, stop - eI)[:len(js)]
             bounds = np.where(np.isnan(E), node.bound, self._score(eI + np.nan_to_num(E)))
             ok = piv >= DEGENERACY_TOL
         else:
-            bounds = np.full(len(js), node.bound)
-            idx = np.hstack([np.broadcast_to(np.array(U, np.int64), (len(js), len(U))),
-                             self.order[js][:, None]])
-            partial = np.linalg.eigvalsh(self.G[idx[:, :, None], idx[:, None, :]])[:, 0]
-            length, done = left, np.zeros(len(js), dtype=bool)
-            while True:                       # nested suffixes of growing length bound the children
-                idx = list(U) + [int(j) for j in rest[len(rest) - length:]]
-                lam = np.linalg.eigvalsh(self.G[np.ix_(idx, idx)])[0]
-                new = (np.arange(len(js)) + length >= len(rest)) & ~done   # child's suffix ⊂ this one
-                bounds[new] = np.maximum(bounds[new], lam)
-                done |= new
-                if length >= len(rest):
-                    break
-                length = min(len(rest), 2 * length)
+            bounds, partial = passive_bounds(self.G, U, self.order[js], rest, left, node.bound)
             ok = np.ones(len(js), dtype=bool)
         bounds = np.maximum(bounds, node.bound)       # a child's superset is inside the parent's
         # a child whose superset misses a required set holds no admissible support
         ok = ok & (cov_u[:, None] | self.cov[:, self.order[js]] | self.suffix_cov[:, js + 1]).all(axis=0)
+        if batch and left == 2:
+            self._grandchild_leaves(U, cov_u, js[ok], bounds[ok])
+            return None
         return [(_Node(node.pos + (int(j),), float(bd), float(pa)))
                 for j, bd, pa, o in zip(js, bounds, partial, ok) if o]
 
     # ----------------------------------------------------------------- leaves
-    def leaves(self, U, js):
-        """Score the supports U + order[j] and visit those that could beat the incumbent."""
+    def _grandchild_leaves(self, U, cov_u, js, bounds):
+        """Two terms left: the children ``js`` (bounds ``bounds``) expanded at once — every pair
+        (j, j2 > j) of a child not pruned by its bound is scored in one batch (one call instead
+        of one per child: the per-call overhead dominated on wide libraries)."""
+        keep = bounds < self.incumbent - self.tol
+        if (~keep).any():
+            self.lower_pruned = min(self.lower_pruned, float(bounds[~keep].min()))
+        js = js[keep]
         if not len(js):
             return
+        self.nodes += len(js)
+        J1, J2 = pair_positions(js, len(self.order))
+        cover = (cov_u[:, None] | self.cov[:, self.order[J1]] | self.cov[:, self.order[J2]]).all(axis=0)
+        self.leaves(U, np.column_stack([J1[cover], J2[cover]]))
+
+    def leaves(self, U, js):
+        """Score the supports U + order[js] (js: positions, or rows of positions) and visit those
+        that could beat the incumbent."""
+        if not len(js):
+            return
+        ext = self.order[js]
         S = np.sort(np.hstack([np.broadcast_to(np.array(U, np.int64), (len(js), len(U))),
-                               self.order[js][:, None]]), axis=1)
+                               ext.reshape(len(js), -1)]), axis=1)
         scores, deg = np.empty(len(S)), np.empty(len(S), dtype=bool)
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             _score_chunks(self.G, self.GD, self.c, self.bb, S, scores, deg, None)
@@ -222,14 +213,24 @@ class _Search:
         hopeful = order[scores[order] < self.incumbent - self.tol]
         if len(hopeful) < len(order):
             self.lower_pruned = min(self.lower_pruned, float(scores[order[len(hopeful)]]))
-        if self.best_first:        # queued: examined when no open node's bound is below them
-            for idx in hopeful:
-                heapq.heappush(self.queue, (float(scores[idx]), self.n_queued, tuple(S[idx].tolist())))
-                self.n_queued += 1
-            return
-        for idx in hopeful:
-            if self.examine(tuple(int(j) for j in S[idx]), float(scores[idx])):
-                return
+        # the batch's best leaf is examined at once when it beats every leaf examined so far (not
+        # when best_first): a first incumbent early; the others are queued, one entry per batch,
+        # examined when no open node's bound is below them (an exact fit, at round-off, at once)
+        n_eager, i = (0 if self.best_first else _EAGER), 0
+        while i < min(n_eager, len(hopeful)) and scores[hopeful[i]] < self.record:
+            i += 1
+            if self.examine(tuple(int(j) for j in S[hopeful[i - 1]]), float(scores[hopeful[i - 1]])):
+                break
+        rest = hopeful[i:]
+        late = scores[rest] >= self.incumbent - self.tol       # beaten by a new incumbent
+        if late.any():
+            self.lower_pruned = min(self.lower_pruned, float(scores[rest[late]].min()))
+        rest = rest[~late]
+        if len(rest):
+            heapq.heappush(self.queue, (float(scores[rest[0]]), self.n_queued, 0, S[rest], scores[rest]))
+            self.n_queued, self.queued_leaves = self.n_queued + 1, self.queued_leaves + len(rest)
+            if self.queued_leaves > _MAX_QUEUED:
+                self._trim_queue()
 
     def examine(self, S: tuple, score: float) -> bool:
         """Visit one scored leaf through the rules; True when it becomes the incumbent."""
@@ -237,6 +238,7 @@ class _Search:
             return False
         self.seen.add(S)
         self.n_examined += 1
+        self.record = min(self.record, score)
         if reducible(self.G, self.c, np.array([S]))[0]:
             self.n_reducible += 1
             if self.n_reducible <= self.n_report:
@@ -255,22 +257,30 @@ class _Search:
             self.incumbent, self.winner, self.null_dim = cand.score, cand, nd
         return bool(cand.admissible)
 
+    def _trim_queue(self):       # keep the best half (the smallest score dropped stays a bound)
+        self.queue, dropped, self.queued_leaves = trim_queue(self.queue, _MAX_QUEUED // 2, self.n_queued)
+        self.n_queued, self.lower_dropped = self.n_queued + 1, min(self.lower_dropped, dropped)
+
     def _trim_pool(self):
         S, s = np.vstack(self.pool_S), np.concatenate(self.pool_s)
         keep = np.argsort(s, kind="stable")[:_POOL]
         self.pool_S, self.pool_s, self.pool_n = [S[keep]], [s[keep]], len(keep)
 
     # ----------------------------------------------------------------- search
-    def start(self, screen) -> "_Search":
+    def start(self, screen, window: bool = False) -> "_Search":
         """This search's tree over the free terms in library order (False), the screening order
-        (True) or the basis-pursuit order ("l1", driven data; None when it cannot be had)."""
-        if screen == "l1":
-            self.order = l1_order(self.Af, self.bf, self.free, self.forced)
+        (True) or the basis-pursuit order ("l1", driven data; None when it cannot be had).  Among
+        nodes bounded at round-off, depth first (lexicographic), or with ``window`` the node whose
+        last term comes first: every prefix over the first N terms before one using term N+1."""
+        if screen in ("l1", "l1-sparse"):      # "l1-sparse": only when it finds a sparse fit
+            self.order = l1_order(self.Af, self.bf, self.free, self.forced,
+                                  max_terms=2 * self.r if screen == "l1-sparse" else None)
             if self.order is None:
                 return None
         else:
             self.order = (screening_order(self.G, self.c, self.forced, self.free, self.k, self.GD)
                           if screen else np.array(self.free, dtype=np.int64))
+        self.window = window
         oc = self.cov[:, self.order]
         self.suffix_cov = np.zeros((len(oc), len(self.order) + 1), dtype=bool)
         self.suffix_cov[:, :-1] = np.flip(np.logical_or.accumulate(np.flip(oc, 1), axis=1), 1)
@@ -279,17 +289,24 @@ class _Search:
 
     def advance(self, until: float) -> str:
         """Expand until the clock passes ``until``: "done" (tree exhausted), "open" or "full"."""
-        heap = self.heap
+        heap, owed = self.heap, False
         while heap or self.queue:
             # a queued leaf is examined when no open node's bound is below it (both at round-off
-            # count as 0, as in the nodes' keys)
-            if self.queue and (not heap or (self.queue[0][0] if self.queue[0][0] > self.tol else 0.0)
-                               <= heap[0][0][0]):
-                score, _, S = heapq.heappop(self.queue)
-                if score >= self.incumbent - self.tol:
+            # count as 0, as in the nodes' keys), and (not best_first) the best one after each node
+            # expanded: the incumbent improves while bounds are weak
+            if self.queue and (not heap or owed or (self.queue[0][0] if self.queue[0][0] > self.tol
+                                                    else 0.0) <= heap[0][0][0]):
+                owed = False
+                score, _, i, SS, ss = heapq.heappop(self.queue)
+                self.queued_leaves -= 1
+                if score >= self.incumbent - self.tol:     # so are the rest of its batch
                     self.lower_pruned = min(self.lower_pruned, score)
-                else:
-                    self.examine(S, score)
+                    self.queued_leaves -= len(ss) - i - 1
+                    continue
+                if i + 1 < len(ss):
+                    heapq.heappush(self.queue, (float(ss[i + 1]), self.n_queued, i + 1, SS, ss))
+                    self.n_queued += 1
+                self.examine(tuple(int(j) for j in SS[i]), score)
                 continue
             node = heapq.heappop(heap)[2]
             if node.bound >= self.incumbent - self.tol:
@@ -298,15 +315,17 @@ class _Search:
             self.current = node
             self.nodes += 1
             kids = self.children(node)
-            self.current = None
+            self.current, owed = None, not self.best_first
             for ch in kids or ():
                 if ch.bound >= self.incumbent - self.tol:
                     self.lower_pruned = min(self.lower_pruned, ch.bound)
                     continue
-                key = (ch.bound if ch.bound > self.tol else 0.0, -len(ch.pos), ch.pos[-1], ch.partial)
+                b0 = ch.bound if ch.bound > self.tol else 0.0
+                key = ((b0, ch.pos[-1], -len(ch.pos), ch.partial) if self.window
+                       else (b0, -len(ch.pos), ch.pos[-1], ch.partial))
                 heapq.heappush(heap, (key, self.counter, ch))
                 self.counter += 1
-            if len(heap) + len(self.queue) > _MAX_OPEN:
+            if len(heap) > _MAX_OPEN:
                 return "full"
             if time.monotonic() > until:
                 return "open" if heap or self.queue else "done"
@@ -314,7 +333,8 @@ class _Search:
 
     def lower(self) -> float:
         """Smallest bound or score left unexplored or pruned: no unexamined support scores less."""
-        return min([self.lower_pruned] + [h[2].bound for h in self.heap] + [q[0] for q in self.queue[:1]]
+        return min([self.lower_pruned, self.lower_dropped] + [h[2].bound for h in self.heap]
+                   + [q[0] for q in self.queue[:1]]
                    + ([self.current.bound] if self.current is not None else []))
 
 
@@ -344,7 +364,9 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         The order of the free terms: the library's (False; a polynomial library lists low degrees
         first), :func:`screening_order` (True), the basis-pursuit order (:func:`l1_order`,
         "l1", driven data), or all of them searched in turn sharing the incumbent, the first one
-        exhausted proving it ("auto", default).  The answer is the same; which order finds the
+        exhausted proving it ("auto", default; the basis-pursuit tree only when basis pursuit
+        finds a sparse fit or the system is not underdetermined, see ``max_terms`` of
+        :func:`l1_order`).  The answer is the same; which order finds the
         winner first depends on the data (benchmarks/bench_bnb.py: the library order on the
         paper's 1 s runs, the basis-pursuit order on rich data, where it puts the true terms first).
     structure : (banned, required), optional
@@ -352,9 +374,10 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         :func:`structure_of` ``(admissible)``: found when ``admissible`` is an
         :class:`~lsindy_cas.identify.admissibility.Admissibility`).
     best_first : bool
-        Queue scored leaves and examine them only when no open node's bound is below them (the
-        first admissible one is then proven at once); default: examine each node's leaves as
-        soon as they are scored, which finds an incumbent earlier when bounds are weak.
+        Queue every scored leaf and examine it only when no open node's bound is below it (the
+        first admissible one is then proven at once); default: examine the best leaf of each
+        batch as soon as it is scored and queue the others, which finds an incumbent earlier when
+        bounds are weak (and, on exact data, the exact fit as soon as its batch is scored).
 
     Returns
     -------
@@ -380,15 +403,21 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     if structure is None:
         structure = structure_of(admissible, p)
     s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
+    slices = None
     if screen == "auto":
-        trees = [s.start(False)] + [t for t in (s.clone().start("l1") if b is not None else None,
-                                                s.clone().start(True)) if t is not None]
+        l1 = s.clone().start("l1-sparse") if b is not None else None
+        trees = [s.start(False), s.clone().start(False, window=True)]
+        trees += [t for t in (l1, s.clone().start(True)) if t is not None]
+        if b is not None and l1 is None:    # paper runs (bench_bnb): the library order finds it
+            slices = [_LIBRARY_SLICES] * 2 + [1] * (len(trees) - 2)
     else:
         trees = [s.start(screen if screen == "l1" else bool(screen))]
         if trees[0] is None:
             raise ValueError("the basis-pursuit order needs driven data (b) and a solvable "
                              "linear programme")
-    lower, proven, seconds, interrupted = drive(trees, time_limit, progress)
+    lower, proven, seconds, interrupted = drive(trees, time_limit, progress, slices)
+    # leaves dropped from a full queue were never examined: proven only if none could win
+    proven = proven and all(t.lower_dropped >= s.incumbent - tol for t in trees)
     for t in trees[1:]:
         s.pool_S += t.pool_S
         s.pool_s += t.pool_s

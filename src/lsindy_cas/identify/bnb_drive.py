@@ -15,8 +15,9 @@ __all__ = ["drive"]
 REPORT_EVERY = 0.25       # seconds between progress reports (and between trees)
 
 
-def drive(trees, time_limit, progress):
-    """Advance the trees in turn (slices of REPORT_EVERY s), sharing the incumbent.
+def drive(trees, time_limit, progress, slices=None):
+    """Advance the trees in turn (``slices[i]`` slices of REPORT_EVERY s each for tree i, default
+    one), sharing the incumbent.
 
     Every tree covers all supports, so the first one exhausted proves the incumbent; each tree's
     lower bound holds for every support it has not examined, so the largest one bounds the gap.
@@ -27,10 +28,10 @@ def drive(trees, time_limit, progress):
     state, interrupted = "open", False
     try:
         while state == "open":
-            for s in trees:
+            for s, n in zip(trees, slices or [1] * len(trees)):
                 best = min(trees, key=lambda t: t.incumbent)
                 s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
-                state = s.advance(min(deadline, time.monotonic() + REPORT_EVERY))
+                state = s.advance(min(deadline, time.monotonic() + n * REPORT_EVERY))
                 if progress is not None:
                     _report(progress, trees, time.monotonic() - t0)
                 if state != "open" or time.monotonic() > deadline:

@@ -135,7 +135,7 @@ def screening_order(G: np.ndarray, c: np.ndarray | None, forced, free, k: int,
 
 
 def l1_order(A: np.ndarray, b: np.ndarray | None, free, forced=(),
-             rtol: float = 1e-10) -> np.ndarray | None:
+             rtol: float = 1e-10, max_terms: int | None = None) -> np.ndarray | None:
     """The free terms by the size of their coefficient in the least-ℓ1 exact fit (basis pursuit).
 
     On the column-normalised columns M = U S Vᵀ of the forced and free terms (directions with
@@ -144,7 +144,11 @@ def l1_order(A: np.ndarray, b: np.ndarray | None, free, forced=(),
     it recovers a sparse exact fit even when the terms are strongly correlated (where forward
     stepwise picks what fits best alone); on noisy data it is the least-ℓ1 least-squares fit.
     Returns the free terms, largest |x_j| first, or None for passive data or when the programme
-    fails (the caller keeps its other orders).
+    fails (the caller keeps its other orders).  With ``max_terms``, also None when the system is
+    underdetermined (fewer kept directions than terms) and x has more than ``max_terms`` non-zero
+    free coefficients: basis pursuit found no sparse fit, the LP's vertex has as many terms as
+    directions and the order of the other terms (all zero) is the library's — on the paper's
+    short runs this order only moves some thirty wrong terms ahead of the library order.
     """
     free = np.asarray(free, dtype=np.int64)
     if b is None or not len(free):
@@ -167,4 +171,6 @@ def l1_order(A: np.ndarray, b: np.ndarray | None, free, forced=(),
     if res.status != 0 or res.x is None:
         return None
     x = np.abs(res.x[:n] - res.x[n:])[n - len(free):]
+    if max_terms is not None and r < n and np.sum(x > 1e-12 * max(x.max(), 1e-300)) > max_terms:
+        return None
     return free[np.argsort(-x, kind="stable")]
