@@ -106,13 +106,20 @@ def run_one(job):
             model = _fit(method, lib, setup, noisy)
             exact, err = compare(model.coef_, truth)
             k, status, reasons = model.n_terms_, model.status_, model.status_reasons_
+            checks = getattr(model.diagnostics_, "checks", None) or {}
+            rel_std = {key: checks.get(key) for key in ("propagated_relative_std",
+                                                        "largest_relative_std")}
         except ValueError as exc:
             exact, err, k, status, reasons = False, float("inf"), None, "refused", [str(exc)]
+            rel_std = {}
             print(f"  {name}/{protocol}/σ={sigma:g}/seed {seed}/{method}: {exc}", file=sys.stderr)
         out.append({"system": name, "protocol": protocol, "sigma": sigma, "seed": seed,
                     "method": method, "exact_support": exact, "max_rel_error": err, "k": k,
                     "k_true": setup.n_terms, "status": status, "status_reasons": reasons,
-                    "success": bool(exact and err <= TOL), "seconds": time.perf_counter() - t0})
+                    "success": bool(exact and err <= TOL), "seconds": time.perf_counter() - t0,
+                    # the status's relative standard errors: propagated (noise model with the
+                    # rows' correlations) and jackknife; None where not computed
+                    "relative_std": rel_std})
     return out
 
 

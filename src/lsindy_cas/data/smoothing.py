@@ -37,8 +37,8 @@ from .._validate import check_int
 from .trajectory import Trajectory
 
 __all__ = ["Smoothed", "smooth", "whittaker", "force_switches", "finite_difference", "add_noise",
-           "VelocityEstimate", "estimate_velocities", "UNDERSMOOTH", "MIN_POSITION_SAMPLES",
-           "MIN_POSITION_STEPS"]
+           "VelocityEstimate", "estimate_velocities", "truncation_error", "UNDERSMOOTH",
+           "MIN_POSITION_SAMPLES", "MIN_POSITION_STEPS"]
 
 UNDERSMOOTH = 0.1
 # Likelihood noise / robust noise above which a column is not smoothed (white noise: 0.9–1.1; the
@@ -48,12 +48,6 @@ _MAX_BLOCK = 1500          # longer records are smoothed in overlapping blocks (
 _OVERLAP = 150
 # λ·s_max from 1e-6 (no smoothing) to 1e12 (a polynomial of degree d − 1), 10 points per decade.
 _LOG_GRID = np.arange(-6.0, 12.0001, 0.1)
-# Positions only: the fewest samples a run needs for the likelihood to choose λ and the derivative
-# to have neighbours on both sides (the smoother leaves runs of ≤ 2d + 2 = 8 samples untouched)...
-MIN_POSITION_SAMPLES = 20
-# ... and the fewest distinct quantisation steps the motion of a moving coordinate must span
-# (below that the staircase, not the motion, makes the derivative).
-MIN_POSITION_STEPS = 20
 
 
 @dataclass
@@ -335,116 +329,6 @@ def add_noise(trajectory: Trajectory, sigma: float, rng: np.random.Generator) ->
     return Trajectory(tr.t, q, qd, tr.coords, Q=tr.Q, source=f"{tr.source} + N(0, {sigma:g}²)")
 
 
-@dataclass
-class VelocityEstimate:
-    """Velocities estimated from measured positions (:func:`estimate_velocities`).
-
-    Attributes
-    ----------
-    q, qd : arrays (n_samples, n_coords)
-        Smoothed positions and their time derivative.
-    noise : array (n_coords,)
-        Estimated noise std of the measured positions (units of each coordinate).
-    qd_error : array (n_samples, n_coords)
-        Standard deviation of the error in each estimated velocity, σ̂ √((D H Hᵀ Dᵀ)_ii), D the
-        derivative of the interpolating spline, H the smoother (noise part only, not the bias).
-    """
-
-    q: np.ndarray
-    qd: np.ndarray
-    noise: np.ndarray
-    qd_error: np.ndarray
-
-
-def _check_positions(t, q, source):
-    n_samples = len(t)
-    if n_samples < MIN_POSITION_SAMPLES:
-        raise ValueError(f"{source}: too few samples ({n_samples}) to estimate velocities from "
-                         f"positions; need at least {MIN_POSITION_SAMPLES} (or give <q>_dot columns)")
-    for j in range(q.shape[1]):
-        levels = np.unique(q[:, j])
-        if levels.size < 2:
-            continue                             # at rest: zero velocity, estimated exactly
-        span = levels[-1] - levels[0]
-        step = np.diff(levels).min()
-        if span / step < MIN_POSITION_STEPS:
-            raise ValueError(f"{source}: positions too coarse to estimate velocities: column {j} "
-                             f"moves over {span:.3g} in steps of {step:.3g} ({span / step:.0f} "
-                             f"steps; need at least {MIN_POSITION_STEPS})")
-
-
-def _derivative_matrix(t: np.ndarray) -> np.ndarray:
-    """(N, N) matrix: values at the samples -> derivative of their quintic interpolating spline."""
-    from scipy.interpolate import make_interp_spline
-    k = 5 if len(t) > 5 else 3
-    return make_interp_spline(t, np.eye(len(t)), k=k, axis=0).derivative()(t)
-
-
-def _velocity_block(t, Y, d, undersmooth, breaks):
-    Z, noise, _, lams = _whittaker_block(t, Y, d, None, undersmooth, breaks)
-    s, U = _basis(t, d, breaks)
-    Dv = _derivative_matrix(t)
-    V, err = Dv @ Z, np.empty_like(Z)
-    for j in range(Y.shape[1]):
-        f = 1.0 / (1.0 + lams[j] / s.max() * s)
-        DH = (Dv @ U) * f[None, :]                  # D H = D U diag(f) Uᵀ, and Uᵀ is orthogonal
-        err[:, j] = noise[j] * np.sqrt((DH ** 2).sum(axis=1))
-    return Z, V, noise, err
-
-
-def estimate_velocities(t, q, Q=None, *, order: int = 3, undersmooth: float = 1.0,
-                        source: str = "positions") -> VelocityEstimate:
-    """Velocities from positions: the derivative of the Whittaker-smoothed positions.
-
-    Each position column is smoothed with its penalty chosen by marginal likelihood
-    (:func:`whittaker`; not undersmoothed by default: differentiation amplifies what is left of
-    the noise), the smoothed samples are interpolated by a quintic spline (any sample times) and
-    differentiated.  The error of each estimate is propagated exactly through the two linear maps.
-
-    Parameters
-    ----------
-    t : array (N,)
-        Sample times, strictly increasing (need not be uniform).
-    q : array (N, n)
-        Measured positions.
-    Q : array (N, n), optional
-        Applied forces: where a held force switches, the acceleration may jump (not penalised).
-    order, undersmooth
-        As in :func:`whittaker`.
-    source : str
-        Name of the data for error messages.
-
-    Returns
-    -------
-    VelocityEstimate
-
-    Raises
-    ------
-    ValueError
-        Fewer than ``MIN_POSITION_SAMPLES`` samples, or a coordinate whose motion spans fewer than
-        ``MIN_POSITION_STEPS`` quantisation steps.
-    """
-    t = np.asarray(t, float)
-    q = np.asarray(q, float)
-    q2 = q[:, None] if q.ndim == 1 else q
-    _check_positions(t, q2, source)
-    breaks = force_switches(np.zeros_like(q2) if Q is None else np.asarray(Q, float))
-    n = len(t)
-    if n <= _MAX_BLOCK:
-        Z, V, noise, err = _velocity_block(t, q2, order, undersmooth, breaks)
-    else:                                      # overlapping blocks, each keeps its central part
-        Z, V, err = np.empty_like(q2), np.empty_like(q2), np.empty_like(q2)
-        stats, step, start = [], _MAX_BLOCK - 2 * _OVERLAP, 0
-        while start < n:
-            hi = min(n, max(0, start - _OVERLAP) + _MAX_BLOCK)
-            lo = max(0, hi - _MAX_BLOCK)
-            br = breaks[(breaks > lo) & (breaks < hi)] - lo
-            Zb, Vb, noise_b, err_b = _velocity_block(t[lo:hi], q2[lo:hi], order, undersmooth, br)
-            stop = min(n, start + step) if hi < n else n
-            Z[start:stop], V[start:stop] = Zb[start - lo:stop - lo], Vb[start - lo:stop - lo]
-            err[start:stop] = err_b[start - lo:stop - lo]
-            stats.append((stop - start, noise_b))
-            start = stop
-        w = np.array([c for c, _ in stats], float)
-        noise = np.sqrt(np.average(np.array([s for _, s in stats]) ** 2, axis=0, weights=w))
-    return VelocityEstimate(Z, V, noise, err)
+# positions only (kept importable from here): velocities differentiated from the smoothed positions
+from .velocities import (MIN_POSITION_SAMPLES, MIN_POSITION_STEPS, VelocityEstimate,  # noqa: E402
+                         estimate_velocities, truncation_error)
