@@ -111,7 +111,7 @@ class SequenceBalancer(PulseBalancer):
                  horizon=16, max_frontier=500, rate_band=None, violation_weight=1e4,
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
                  terminal_weight=1.0, lean_weight=1e-6, centre_weight=10.0, centre_frequency=0.5,
-                 **options):
+                 escape_weight=1.0, **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
@@ -140,6 +140,11 @@ class SequenceBalancer(PulseBalancer):
                                   positive=True)
         self._band_w = np.array([1.0, 1.0, track_weight ** 2]) * self.violation_weight
         self.plan_seconds = []
+        # the pole alone at the upright, phi'' = omega2 * phi (no force): E = theta_dot^2 -
+        # omega2 * phi^2 is conserved between pushes (module docstring, "escape")
+        self.omega2 = float(self.Ac[2 + self.ip, self.ip])
+        self.escape_weight = check_real("escape_weight", escape_weight, nonnegative=True)
+        self.escape_rate = max(0.0, self.kick - self.rate_band)
         # cart speed per unit pole rate of one push: the cart speed "at zero pole rate",
         # x_dot - ratio * theta_dot, changes only through the lean (not through the pushes)
         self.ratio = float(self.B[2 + self.ic] / self.B[2 + self.ip])
@@ -188,9 +193,26 @@ class SequenceBalancer(PulseBalancer):
                 + self._lean_dt * lean * lean)
 
     def _terminal(self, z):
-        """Terminal cost of error states ``z`` (n, 4): unstable mode and DARE value."""
+        """Terminal cost of error states ``z`` (n, 4): unstable mode, DARE value and escape."""
         s = z @ self.mode
-        return self.mode_weight * s * s + ((z @ self.P) * z).sum(axis=1)
+        return (self.mode_weight * s * s + ((z @ self.P) * z).sum(axis=1)
+                + self._escape(z))
+
+    def _escape(self, z):
+        """Penalty on the lean the pole must reach before a push can keep its rate in the band.
+
+        Between pushes ``E = theta_dot^2 - omega2 * phi^2`` is conserved; a push keeps the rate
+        inside ``rate_band`` only once ``|theta_dot| >= kick - rate_band``, which the pole
+        reaches at ``phi*^2 = ((kick - rate_band)^2 - E) / omega2``.  The squared excess of
+        ``phi*`` over ``angle_band``, weighted as a band violation times ``escape_weight``.
+        """
+        if self.escape_weight == 0.0 or self.omega2 <= 0.0:
+            return 0.0
+        phi, rate = z[:, self.ip], z[:, 2 + self.ip]
+        need = (self.escape_rate ** 2 - rate * rate) / self.omega2 + phi * phi
+        over = np.sqrt(np.maximum(need, 0.0)) - self.angle_band
+        np.maximum(over, 0.0, out=over)
+        return self.escape_weight * self.violation_weight * over * over
 
     def reference_lean(self, e):
         """Lean (rad) that returns the cart to the centre, from the error state ``e``.
