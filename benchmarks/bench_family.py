@@ -53,11 +53,40 @@ def worst_kick(mc, mp, L):
     """Largest kick (rad/s, one 10 N push from rest upright, on the true plant) over the 8 sign
     patterns of the +-10 % mismatch, and the share of patterns whose kick exceeds the band's
     width: there no push keeps the pole rate in the band, so those starts cannot succeed."""
-    kicks = []
-    for f in itertools.product((0.9, 1.1), repeat=3):
-        plant = Plant(systems.cart_pendulum(mc=mc * f[0], mp=mp * f[1], L=L * f[2]), DT)
-        kicks.append(float(abs(plant.step(np.array([0.0, np.pi, 0.0, 0.0]), FORCE)[-1, 3])))
+    kicks = [true_kick(systems.cart_pendulum(mc=mc * f[0], mp=mp * f[1], L=L * f[2]))
+             for f in itertools.product((0.9, 1.1), repeat=3)]
     return max(kicks), float(np.mean(np.array(kicks) > BAND_WIDTH))
+
+
+def true_kick(system):
+    """Pole-rate change (rad/s) of one 10 N push from rest upright on ``system`` (nonlinear)."""
+    plant = Plant(system, DT)
+    return float(abs(plant.step(np.array([0.0, np.pi, 0.0, 0.0]), FORCE)[-1, 3]))
+
+
+def classify(ep, plant_kick):
+    """Failure class of one episode (None on success) and the last 3 s peaks.
+
+    ``track`` (|x| > 2 m), ``unreachable`` (the plant's kick exceeds the band's width, the
+    pole cannot be held), ``fell`` (the pole left the upright region, |phi| > 0.5 rad, in the
+    last 3 s), ``never_up`` (never near the upright), otherwise ``margin``: the pole was
+    balanced but its rate or angle touched the success band's edge in the last 3 s.
+    """
+    from lsindy_cas.paper.swingup import wrap_angle
+    last = ep.t >= ep.t[-1] - 3.0 - 1e-9
+    ang = np.abs(wrap_angle(ep.X[last, 1] - np.pi))
+    rate = np.abs(ep.X[last, 3])
+    peaks = {"last3_max_rate": float(rate.max()), "last3_max_angle": float(ang.max())}
+    if ep.success:
+        return None, peaks
+    if ep.track_used > 2.0:
+        return "track", peaks
+    if plant_kick > BAND_WIDTH:
+        return "unreachable", peaks
+    near = (np.abs(wrap_angle(ep.X[:, 1] - np.pi)) < 0.12) & (np.abs(ep.X[:, 3]) < 0.7)
+    if not near.any():
+        return "never_up", peaks
+    return ("fell" if ang.max() > 0.5 else "margin"), peaks
 
 
 def run_cell(model, system, starts, scenario, balance, seed):
@@ -72,10 +101,13 @@ def run_cell(model, system, starts, scenario, balance, seed):
         b = ctrl.balancer
         n0 = len(getattr(b, "plan_seconds", []))
         ep = run_episode(ctrl, Plant(true, DT), x0)
+        k_true = true_kick(true)
+        cls, peaks = classify(ep, k_true)
         plan_ms += [1e3 * s for s in getattr(b, "plan_seconds", [])[n0:]]
         rows.append({"success": bool(ep.success), "time_to_upright": float(ep.time_to_upright),
                      "track_used": float(ep.track_used), "factors": f.tolist(),
                      "plant_kick": kick(true.params["mc"], true.params["L"]),
+                     "plant_true_kick": k_true, "failure": cls, **peaks,
                      "forces_in_set": bool(np.all(np.isin(ep.forces, (-FORCE, 0.0, FORCE))))})
     st = ctrl.stats.summary()
     t_up = [r["time_to_upright"] for r in rows]
@@ -87,7 +119,15 @@ def run_cell(model, system, starts, scenario, balance, seed):
             "plan_ms_median": float(np.median(plan_ms)) if plan_ms else None,
             "plan_ms_p99": float(np.percentile(plan_ms, 99)) if plan_ms else None,
             "failed_starts": [i for i, r in enumerate(rows) if not r["success"]],
+            "failures": {c: sum(r["failure"] == c for r in rows)
+                         for c in ("track", "unreachable", "fell", "never_up", "margin")},
             "episodes_detail": rows}
+
+
+def failures(cell):
+    """Failure classes of a cell as ``class:count`` (``-`` when none failed)."""
+    got = [f"{c}:{k}" for c, k in cell["failures"].items() if k]
+    return " ".join(got) or "-"
 
 
 def figure(report, path):
@@ -147,7 +187,7 @@ def run_plant(i, starts, models, balancers, seed):
                 f"{m['successes']}/{m['episodes']} | {n['median_time_to_upright']:.2f} | "
                 f"{max(n['max_track_used'], m['max_track_used']):.2f} | "
                 f"{max(n['step_ms_p99'], m['step_ms_p99']):.1f} | "
-                f"{fmt(max(plan) if plan else None)} |")
+                f"{fmt(max(plan) if plan else None)} | {failures(n)} / {failures(m)} |")
     row["seconds"] = time.perf_counter() - t0
     return row, lines
 
@@ -180,8 +220,9 @@ def main(argv=None):
     report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE, "plants": []}
     t_all = time.perf_counter()
     print("| mc | mp | L | kick | worst mismatch kick (share > band) | cell | nominal | "
-          "mismatch | median t_up (s) | max abs x (m) | step p99 (ms) | plan p99 (ms) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "mismatch | median t_up (s) | max abs x (m) | step p99 (ms) | plan p99 (ms) | "
+          "failures nominal / mismatch |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     jobs = [(i, starts, models, balancers, args.seed) for i in idx]
     if args.workers == 1:
         results = (run_plant(*job) for job in jobs)

@@ -15,6 +15,7 @@ The exact-model ceiling (the controller built from the plant's true equations) r
     python benchmarks/bench_mujoco_swingup.py --out bench-results            # 10 starts per plant
     python benchmarks/bench_mujoco_swingup.py --out bench-results --starts 20
     python benchmarks/bench_mujoco_swingup.py --out bench-results --starts 2  # quick look
+    python benchmarks/bench_mujoco_swingup.py --out bench-results --plants light --models exact
 
 Needs the optional extra ``mujoco`` (``pip install -e '.[mujoco]'``).
 """
@@ -63,7 +64,17 @@ def main(argv=None):
                     help="existing folder for mujoco_swingup.json and mujoco_swingup.md")
     ap.add_argument("--starts", type=int, default=10, help="random starts per plant (default 10)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--plants", default=",".join(p[0] for p in PLANTS),
+                    help="comma-separated plant names (default: all of "
+                         + ", ".join(p[0] for p in PLANTS) + ")")
+    ap.add_argument("--models", default="identified,exact",
+                    help="comma-separated among identified, exact (default both)")
     args = ap.parse_args(argv)
+    names, models = args.plants.split(","), args.models.split(",")
+    if not set(names) <= {p[0] for p in PLANTS}:
+        ap.error(f"--plants must be among {', '.join(p[0] for p in PLANTS)}, got {args.plants}")
+    if not models or not set(models) <= {"identified", "exact"}:
+        ap.error(f"--models must be among identified, exact, got {args.models}")
     out = Path(args.out)
     if not out.is_dir():
         ap.error(f"--out {out}: no such folder")
@@ -78,7 +89,7 @@ def main(argv=None):
     starts = random_starts(args.starts, args.seed)
     t_start = time.perf_counter()
     rows = []
-    for name, mc, mp, L in PLANTS:
+    for name, mc, mp, L in (p for p in PLANTS if p[0] in names):
         plant = pm.cart_pendulum(mc, mp, L)
         t0 = time.perf_counter()
         model = identify(plant, args.seed)
@@ -93,6 +104,8 @@ def main(argv=None):
                "identify_s": round(t_id, 2), "support_exact": set(got) == set(true_terms),
                "max_coef_rel_err": coef_err}
         for label, m in (("identified", model), ("exact", _Exact(truth))):
+            if label not in models:
+                continue
             ctrl = SwingUpMPC(m, force_set=(-10.0, 0.0, 10.0), dt=DT, horizon=40, track_limit=2.0)
             eps = []
             for i, x0 in enumerate(starts):
@@ -115,8 +128,10 @@ def main(argv=None):
     lines = ["| plant | mc, mp, L | kick (rad/s) | support exact | max coef err | identified: success |"
              " t_up median (s) | max abs x (m) | failed starts | exact model: success | failed starts |"
              " solve p99 (ms) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    empty = {"success": "-", "episodes": "-", "median_time_to_upright": None,
+             "max_track_used": float("nan"), "failed_starts": [], "solve_ms_p99": float("nan")}
     for r in rows:
-        i, e = r["identified"], r["exact"]
+        i, e = r.get("identified", empty), r.get("exact", empty)
         t_up = "-" if i["median_time_to_upright"] is None else f"{i['median_time_to_upright']:.2f}"
         lines.append(
             f"| {r['plant']} | {r['mc']}, {r['mp']}, {r['L']} | {r['kick_rad_s']:.2f} | "

@@ -98,3 +98,28 @@ def test_bad_options(corner):
         SequenceBalancer(*args, rate_band=-1.0, **kw)
     with pytest.raises(ValueError, match="0 in the force set"):
         SequenceBalancer(ctrl.step_function, system.ode(), np.array([-10.0, 10.0]), **kw)
+
+
+def test_escape_penalty_known_answer(corner):
+    """The pole alone at the upright: phi'' = (m_c + m_p) g / (m_c L) phi; a pole at rest at a
+    lean phi0 reaches the rate kick - rate_band (the first rate a push can reverse inside the
+    band) at phi*^2 = phi0^2 + (kick - rate_band)^2 / omega2; only its excess over the angle
+    band is penalised, as a band violation."""
+    system, ctrl = corner
+    assert ctrl.balancer.escape_weight == 0.0          # off by default
+    b = SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
+                         pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05,
+                         escape_weight=1.0)
+    assert b.omega2 == pytest.approx((0.8 + 0.2) * 9.81 / (0.8 * 0.7), rel=1e-9)
+    assert b.escape_rate == pytest.approx(b.kick - b.rate_band)
+    rest = np.array([[0.85, 0.024, 0.0, 0.0]])            # x, phi, x_dot, theta_dot
+    phi_star = np.sqrt(0.024 ** 2 + b.escape_rate ** 2 / b.omega2)
+    assert phi_star > b.angle_band
+    expected = b.violation_weight * (phi_star - b.angle_band) ** 2
+    assert b._escape(rest)[0] == pytest.approx(expected, rel=1e-12)
+    # swinging over the top faster than the escape rate: nothing to pay
+    assert b._escape(np.array([[0.0, 0.0, 0.0, 0.45]]))[0] == 0.0
+    with pytest.raises(ValueError, match="escape_weight"):
+        SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
+                         pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05,
+                         escape_weight=-1.0)
