@@ -18,16 +18,14 @@ passive data the smallest eigenvalue of a few nested suffixes bounds all childre
 
 Nodes are expanded best-first (lowest bound; among bounds at round-off, deepest first and then the
 lowest partial score, which makes the first descent the forward-stepwise model).  A node with two
-terms left scores the leaves of all its children in one batch
-(:mod:`~lsindy_cas.identify.bnb_leaves`), exactly as the exhaustive search scores them
-(:func:`lsindy_cas.identify.search._score_chunks`).  Leaves are visited through the same rules
+terms left scores the leaves of all its children in one batch (:mod:`.bnb_leaves`), exactly as
+the exhaustive search does (:func:`.search._score_chunks`).  Leaves are visited through the same rules
 (degenerate, reducible, then ``admissible``): a leaf becomes the incumbent only when it passes them
-all.  A batch's best leaf is examined at once when it beats every leaf examined so far; the others
-are queued and examined when no open node's bound is below them (an exact fit, at round-off, at
-once).  With rank-deficient data every bound is 0 until deep: examining every leaf as scored
-(~1 ms each) kept the paper's double pendulum from being found.  A subtree is pruned when its
-bound is not below the incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the
-resolution of a Gram-based score): none of its supports beats the incumbent beyond round-off.
+all; with more rows than terms every hopeful leaf is examined as scored, with fewer (rank-deficient
+data, every bound 0 until deep, ~1 ms per examination) only a batch's best one when it beats every
+leaf examined so far, the others queued.  A subtree is pruned when its bound is not below the
+incumbent by more than ``tol`` (default ``SCORE_RESOLUTION``, the resolution of a Gram-based
+score): none of its supports beats the incumbent beyond round-off.
 
 Before any bound, the admissibility rules prune exactly (:func:`structure_of`): terms no energy has
 are left out, and a subtree whose terms miss every term with ∂²θ/∂q̇_i² ≠ 0 for some coordinate i
@@ -115,10 +113,10 @@ class _Search:
         self.candidates, self.n_reducible, self.n_examined = [], 0, 0
         self.pool_S, self.pool_s, self.pool_n = [], [], 0
         self.n_leaves = self.n_degenerate = self.nodes = 0
-        self.lower_pruned = np.inf
-        self.current = None
+        self.lower_pruned, self.current = np.inf, None
         self.best_first, self.queue, self.n_queued = best_first, [], 0
         self.queued_leaves, self.lower_dropped, self.record = 0, np.inf, np.inf
+        self.eager_all = A.shape[0] >= A.shape[1]      # see leaves()
         self.seen = set()                   # supports examined (shared by the trees of a search)
 
     def clone(self) -> "_Search":
@@ -213,6 +211,9 @@ class _Search:
         hopeful = order[scores[order] < self.incumbent - self.tol]
         if len(hopeful) < len(order):
             self.lower_pruned = min(self.lower_pruned, float(scores[order[len(hopeful)]]))
+        if self.eager_all and not self.best_first:   # every hopeful leaf at once, up to the first
+            any(self.examine(tuple(int(j) for j in S[i]), float(scores[i])) for i in hopeful)
+            return         # admissible (queued, noisy data took 36x the nodes: often inadmissible)
         # the batch's best leaf is examined at once when it beats every leaf examined so far (not
         # when best_first): a first incumbent early; the others are queued, one entry per batch,
         # examined when no open node's bound is below them (an exact fit, at round-off, at once)
@@ -406,10 +407,10 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     slices = None
     if screen == "auto":
         l1 = s.clone().start("l1-sparse") if b is not None else None
-        trees = [s.start(False), s.clone().start(False, window=True)]
-        trees += [t for t in (l1, s.clone().start(True)) if t is not None]
+        lib = [s.start(False)] + ([] if s.eager_all else [s.clone().start(False, window=True)])
+        trees = lib + [t for t in (l1, s.clone().start(True)) if t is not None]
         if b is not None and l1 is None:    # paper runs (bench_bnb): the library order finds it
-            slices = [_LIBRARY_SLICES] * 2 + [1] * (len(trees) - 2)
+            slices = [_LIBRARY_SLICES] * len(lib) + [1] * (len(trees) - len(lib))
     else:
         trees = [s.start(screen if screen == "l1" else bool(screen))]
         if trees[0] is None:
