@@ -117,7 +117,7 @@ def _run_task(templates, which, entries, incumbent, var_name, seconds):
             "candidates": cands[:_KEEP], "pool": (s.pool_S[0], s.pool_s[0]) if s.pool_S else None,
             "counts": [s.n_leaves, s.n_degenerate, s.nodes, s.n_examined, s.n_reducible],
             "lower_pruned": s.lower_pruned, "open": [(key, node) for key, _, node in s.heap],
-            "full": state == "full"}
+            "full": state == "full", "seconds": time.monotonic() - t0}
 
 
 def _safe_get(var):
@@ -211,6 +211,7 @@ class _Run:
         self.out = {}                      # future -> (tree index, smallest bound sent)
         self.interrupted = self.full = False
         self.tasks, self.told = 0, False
+        self.busy = [0.0] * len(trees)      # worker seconds spent on each tree
 
     @property
     def incumbent(self) -> float:
@@ -254,18 +255,18 @@ class _Run:
         self.var = d.Variable(f"lsindy-bnb-{uuid.uuid4().hex}", client=client)
         self.var.set(float(self.incumbent))
         self.ac = d.as_completed()
-        turn = 0
         try:
             while True:
                 if self.stopped() and self.out and not self.told:
                     self.var.set(-np.inf)     # proven: the tasks out stop at their next read
                     self.told = True
                 while len(self.out) < 2 * n_workers and not self.stopped():
-                    for _ in range(len(self.trees)):        # next tree with open nodes
-                        i, turn = turn % len(self.trees), turn + 1
-                        if self._submit(tmpl, i, n_workers, task_seconds):
-                            break
-                    else:
+                    # the tree with the least worker time so far (tasks out count in full), as
+                    # one process gives the trees equal time slices
+                    busy = [self.busy[i] + task_seconds * sum(w == i for w, _ in self.out.values())
+                            for i in range(len(self.trees))]
+                    if not any(self._submit(tmpl, i, n_workers, task_seconds)
+                               for i in np.argsort(busy, kind="stable").tolist()):
                         break
                 if not self.out:
                     break
@@ -312,6 +313,7 @@ class _Run:
         if r["pool"] is not None:
             self.pools.append(r["pool"])
         self.full |= r["full"]
+        self.busy[i] += r["seconds"]
         self._adopt(r["winner"], r["null_dim"])
 
     def drain(self):
