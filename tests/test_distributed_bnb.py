@@ -124,17 +124,48 @@ def test_estimator_routes_branch_and_bound_to_the_cluster(client, on_workers, mo
     np.testing.assert_allclose(many.coef_, one.coef_, rtol=0, atol=1e-12)
 
 
-def test_time_limit_returns_best_so_far_not_proven(client, on_workers):
+def test_time_limit_returns_best_so_far_not_proven(client, on_workers, monkeypatch):
     """Pure noise (every support scores alike: one process needs ~1,500 nodes, seconds, to prove
-    it) cut at 0.5 s: the best support found so far, marked not proven, its gap reported, never
-    better than the exhaustive optimum."""
+    it); the driver's clock jumps past the 5 s limit once a task has brought a winner back: the
+    tasks out are stopped and merged, and the best support found so far is returned, marked not
+    proven, with its gap, never better than the exhaustive optimum."""
     from lsindy_cas.identify.search import best_subset
+    state = {"jumped": False}
+    real_clock, merge = distributed_bnb._clock, distributed_bnb._Run._merge
+
+    def clock():
+        return real_clock() + (1e6 if state["jumped"] else 0.0)
+
+    def merge_then_jump(self, fut):
+        merge(self, fut)
+        state["jumped"] = state["jumped"] or self.best is not None
+
+    monkeypatch.setattr(distributed_bnb, "_clock", clock)
+    monkeypatch.setattr(distributed_bnb._Run, "_merge", merge_then_jump)
     rng = np.random.default_rng(1)
     A, b = rng.normal(size=(200, 40)), rng.normal(size=200)
-    res = distributed_bnb.branch_and_bound_distributed(client, A, b, 5, time_limit=0.5,
-                                                       task_seconds=0.1)
+    res = distributed_bnb.branch_and_bound_distributed(client, A, b, 5, time_limit=5.0,
+                                                       task_seconds=0.2)
     assert not res.proven and res.gap > 0 and not res.interrupted and res.tasks >= 1
     assert res.score >= best_subset(A, b, 5).score - 1e-12
+
+
+def test_ctrl_c_on_the_driver_returns_best_so_far(client, on_workers, monkeypatch):
+    """Ctrl-C after the first task came back: the tasks out are told to stop (shared value -inf)
+    and merged, and the best admissible support found so far is returned, not proven."""
+    calls = {"n": 0}
+
+    def report(self):
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(distributed_bnb._Run, "_report", report)
+    rng = np.random.default_rng(1)
+    A, b = rng.normal(size=(200, 40)), rng.normal(size=200)
+    res = distributed_bnb.branch_and_bound_distributed(client, A, b, 5, task_seconds=0.2)
+    assert res.interrupted and not res.proven and res.gap >= 0 and res.tasks >= 1
+    assert len(res.support) == 5 and np.isfinite(res.score)
 
 
 @pytest.mark.parametrize("kwargs, match", [

@@ -69,6 +69,7 @@ TASK_SECONDS = 1.0    # a task hands its open nodes back after this long (overhe
 SYNC_EVERY = 0.1      # seconds between a task's reads of the shared incumbent
 FRONTIER = 4          # open nodes per worker in each tree before the first tasks go out
 _KEEP = 200           # candidates a task returns (the best-scoring ones: what diagnostics read)
+_clock = time.monotonic   # the driver's clock (a test replaces it; the workers keep their own)
 
 
 def _template(tree: _Search) -> _Search:
@@ -183,7 +184,7 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
     s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, False)
     trees = [s.start(False)] + [t for t in (s.clone().start("l1") if b is not None else None,
                                             s.clone().start(True)) if t is not None]
-    t0 = time.monotonic()
+    t0 = _clock()
     deadline = np.inf if time_limit is None else t0 + time_limit
     run = _Run(client, d, trees, tol, deadline, progress, t0)
     try:
@@ -212,6 +213,10 @@ class _Run:
         self.interrupted = self.full = False
         self.tasks, self.told = 0, False
         self.busy = [0.0] * len(trees)      # worker seconds spent on each tree
+        self.var = None                     # the shared incumbent (distributed.Variable)
+        # without a warm-up the first round of tasks goes out even past the time limit (one
+        # process, too, expands a node before it looks at the clock)
+        self.grace = True
 
     @property
     def incumbent(self) -> float:
@@ -225,7 +230,7 @@ class _Run:
 
     def stopped(self) -> bool:
         """A tree exhausted (proven), interrupted, out of time or memory."""
-        return (self.interrupted or self.full or time.monotonic() > self.deadline
+        return (self.interrupted or self.full or (_clock() > self.deadline and not self.grace)
                 or any(self._exhausted(i) for i in range(len(self.trees))))
 
     def _exhausted(self, i) -> bool:
@@ -235,7 +240,7 @@ class _Run:
     def warm(self, seconds):
         """The ordinary search on the driver (bnb_drive.drive: the trees in turn)."""
         *_, interrupted = drive(self.trees, seconds, self.progress)
-        self.interrupted = interrupted
+        self.interrupted, self.grace = interrupted, False
         self._adopt(self.trees[0].winner, self.trees[0].null_dim)
 
     def frontier(self, target):
@@ -268,6 +273,7 @@ class _Run:
                     if not any(self._submit(tmpl, i, n_workers, task_seconds)
                                for i in np.argsort(busy, kind="stable").tolist()):
                         break
+                self.grace = False
                 if not self.out:
                     break
                 fut = next(self.ac)
@@ -275,10 +281,12 @@ class _Run:
                 self._report()
         except KeyboardInterrupt:
             self.interrupted = True
-            self.var.set(-np.inf)
+            if self.var is not None:
+                self.var.set(-np.inf)         # the tasks out stop at their next read
         finally:
             self.drain()
-            self.var.delete()
+            if self.var is not None:
+                self.var.delete()
 
     def _submit(self, tmpl, i, n_workers, task_seconds) -> bool:
         t = self.trees[i]
@@ -292,7 +300,7 @@ class _Run:
             entries.append((key, node))
         if not entries:
             return False
-        seconds = min(task_seconds, max(0.05, self.deadline - time.monotonic()))
+        seconds = min(task_seconds, max(0.05, self.deadline - _clock()))
         fut = self.client.submit(_run_task, tmpl, i, entries, float(self.incumbent),
                                  self.var.name, seconds, pure=False)
         self.out[fut] = (i, min(n.bound for _, n in entries))
@@ -341,7 +349,7 @@ class _Run:
         self.progress(int(self.counts[2]) + sum(t.nodes for t in self.trees), 0)
         status = getattr(self.progress, "status", None)
         if status is not None:
-            status(f"gap {gap:.2e}, best {inc:.3e}, {time.monotonic() - self.t0:.1f} s, "
+            status(f"gap {gap:.2e}, best {inc:.3e}, {_clock() - self.t0:.1f} s, "
                    f"{len(self.out)} tasks out")
 
     def result(self, A, b, k, scale_system, n_report) -> SearchResult:
@@ -349,7 +357,7 @@ class _Run:
         trees, s = self.trees, self.trees[0]
         proven = any(self._exhausted(i) for i in range(len(trees))) and not self.interrupted \
             and not self.full
-        seconds = time.monotonic() - self.t0
+        seconds = _clock() - self.t0
         counts = self.counts + np.array([sum(getattr(t, n) for t in trees) for n in
                                          ("n_leaves", "n_degenerate", "nodes", "n_examined",
                                           "n_reducible")])
