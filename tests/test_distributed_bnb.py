@@ -91,13 +91,16 @@ def test_a_shared_incumbent_prunes_in_the_workers(client):
     assert stop["counts"][2] == 0 and not stop["open"] and stop["lower_pruned"] == 0.0
 
 
-def test_distributed_nodes_stay_close_to_one_process(client, on_workers):
-    """Workers prune as well as one process: nodes over all tasks within 1.5x of one process's
-    (+ 20 for the few expansions a task makes before the incumbent of another reaches it)."""
+@pytest.mark.parametrize("screen", [False, True], ids=["library order", "screening order"])
+def test_distributed_nodes_stay_close_to_one_process(client, on_workers, screen):
+    """Workers prune as well as one process: on one tree (with "auto" the trees a process would
+    not have reached run in parallel and count too) the nodes over all tasks are within 1.5x of
+    one process's (+ 20 for the expansions a task makes before another's incumbent reaches it)."""
     A, b, _ = _noisy(4, m=150, p=28)
-    one = branch_and_bound(A, b, 5)
-    many = distributed_bnb.branch_and_bound_distributed(client, A, b, 5, task_seconds=0.2)
-    assert many.support == one.support and many.proven
+    one = branch_and_bound(A, b, 5, screen=screen)
+    many = distributed_bnb.branch_and_bound_distributed(client, A, b, 5, task_seconds=0.2,
+                                                        screen=screen)
+    assert many.support == one.support and many.proven and many.tasks >= 1
     assert many.nodes <= 1.5 * one.nodes + 20, (many.nodes, one.nodes)
 
 

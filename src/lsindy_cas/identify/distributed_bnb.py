@@ -8,8 +8,8 @@ its bound holds for every support in it.  Here the driver keeps those heaps as t
    problem is proven there and never leaves the process; on rich data the basis-pursuit tree finds
    the true support in the first nodes), then each tree is expanded best-first until it has
    ``FRONTIER`` open nodes per worker.
-2. *Tasks.*  A task takes the lowest-bound open nodes of one tree (trees in turn, as the single
-   process alternates them) and runs the ordinary best-first search on them for at most
+2. *Tasks.*  A task takes the lowest-bound open nodes of one tree (the tree with the least worker
+   time so far, as one process gives its trees equal time slices) and runs the ordinary best-first search on them for at most
    ``task_seconds``, then returns its winner, its records and the nodes it left open, which go back
    into the pool (so a large subtree is split again: the load balances itself).  ``2 × workers``
    tasks are in flight.  The problem — normalised Gram matrix, the triangular factor the candidates
@@ -22,7 +22,8 @@ its bound holds for every support in it.  Here the driver keeps those heaps as t
    best score it knows to every new task too.
 4. *Answer.*  When a tree's pool is empty and none of its tasks is out, that tree is exhausted and
    the incumbent proven (as in one process: the first tree exhausted proves it); the tasks still
-   out are awaited (their winners may be the one the shared value came from).  The winner is the
+   out are told to stop (the shared value set to −∞) and awaited (their winners may be the one
+   the shared value came from).  A time limit or Ctrl-C stops the same way, not proven.  The winner is the
    lowest admissible score found, exact ties broken by the smaller support; its coefficients are
    refitted on the driver exactly as in one process, so a support found by both has bit-identical
    coefficients.  The certificate is that of one process: ``gap`` = winner − the largest over
@@ -35,17 +36,23 @@ support scores within ``tol`` of the winner — a round-off tie — which of the
 on the visiting order in either search; otherwise the supports are the same.
 
 Scaling to N machines: start a scheduler (``dask scheduler``) and ``dask worker tcp://host:8786``
-on each machine, then ``lsindy identify --scheduler tcp://host:8786`` (``client=`` in Python).  The
-data that travel are the scattered problem (p² floats for the Gram matrix and p² for the factor:
-0.7 MB for 209 terms, whatever the number of samples, plus the admissibility rules' state
-samples), once per worker, and per task a few hundred bytes per node and the task's best 2,000
-scores.  The work divides by ~N while tasks run well above their overhead (benchmarks/bench_dask.py
-measures it: ~10–30 ms a task on one machine, a network adds its round trips) and while there are
-open nodes for every worker: the frontier grows with the search, but a search whose proof hangs on
-a handful of deep subtrees is as slow as its slowest one.  What does not divide: the warm-up and
-the final refit (driver), and the order of discovery — a worker may explore a subtree the single
-process would have pruned with an incumbent found later, so the nodes summed over workers exceed
-one process's by a factor that grows with N when the incumbent is found late.
+on each machine, then ``lsindy identify --scheduler tcp://host:8786`` (``client=`` in Python).  What
+travels, once per worker: the Gram matrix and the triangular factor the candidates are fitted on
+(p² floats each: 0.7 MB for 209 terms, whatever the number of samples) and the admissibility
+rules' state — the kinetic Hessians at ≤ 400 states (s·n²·p floats: 2.7 MB for the double
+pendulum) and the balance the jackknife refits (per-sample rows, unless the balance was streamed
+into R factors, :mod:`lsindy_cas.identify.stream`).  Per task: its nodes (a few hundred bytes
+each) and back its open nodes, its best 2,000 scores and 200 candidates.  The work divides by ~N
+while tasks run well above their overhead (benchmarks/bench_dask.py measures it: a round trip of
+tens of ms on one machine, a network adds its own) and while there are open nodes for every
+worker: the frontier grows with the search, but a search whose proof hangs on a few deep subtrees
+goes no faster than the worker holding them, one task-length at a time.  What does not divide: the
+warm-up and the final refit (driver), and the order of discovery — a worker may expand a subtree
+that one process would have pruned with an incumbent it found first, so the nodes summed over
+workers can exceed one process's, more so with more workers and a late incumbent (measured on 2
+workers: 0.5–1.6× one process's nodes).  The driver handles every task's result, so with very
+many workers it becomes the bottleneck: lengthen ``task_seconds`` to keep it below one result per
+few milliseconds.
 """
 from __future__ import annotations
 
@@ -66,7 +73,7 @@ __all__ = ["branch_and_bound_distributed", "WARMUP", "TASK_SECONDS"]
 
 WARMUP = 0.5          # seconds of the ordinary search on the driver before any task
 TASK_SECONDS = 1.0    # a task hands its open nodes back after this long (overhead ~1-3 %)
-SYNC_EVERY = 0.1      # seconds between a task's reads of the shared incumbent
+SYNC_EVERY = 0.25     # seconds between a task's reads of the shared incumbent (a read: ~10-30 ms)
 FRONTIER = 4          # open nodes per worker in each tree before the first tasks go out
 _KEEP = 200           # candidates a task returns (the best-scoring ones: what diagnostics read)
 _clock = time.monotonic   # the driver's clock (a test replaces it; the workers keep their own)
@@ -135,8 +142,8 @@ def _better(cand, best) -> bool:
 
 def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None, D=None,
                                  scale_system=None, time_limit=None, tol=SCORE_RESOLUTION,
-                                 n_report=10, progress=None, structure=None, warmup=None,
-                                 task_seconds=None) -> SearchResult:
+                                 n_report=10, progress=None, structure=None, screen="auto",
+                                 warmup=None, task_seconds=None) -> SearchResult:
     """:func:`~lsindy_cas.identify.bnb.branch_and_bound` with the subtrees searched on ``client``.
 
     Parameters
@@ -144,8 +151,10 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
     client : distributed.Client
         A client of a running cluster (:func:`lsindy_cas.identify.distributed.connect`).
     A, b, k, forced, admissible, D, scale_system, time_limit, tol, n_report, progress, structure
-        As for :func:`~lsindy_cas.identify.bnb.branch_and_bound` (``screen="auto"``: the three
-        trees).
+        As for :func:`~lsindy_cas.identify.bnb.branch_and_bound`.
+    screen : {"auto", True, False, "l1"}
+        The trees, as for :func:`~lsindy_cas.identify.bnb.branch_and_bound` ("auto": the library,
+        basis-pursuit and screening orders, sharing the incumbent; otherwise that one order).
     warmup : float, optional
         Seconds of the ordinary search on the driver first (≥ 0; a problem proven within them
         never uses the cluster; default ``WARMUP``).
@@ -182,8 +191,14 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
         structure = structure_of(admissible, p)
     # the trees of branch_and_bound(screen="auto"), built the same way
     s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, False)
-    trees = [s.start(False)] + [t for t in (s.clone().start("l1") if b is not None else None,
-                                            s.clone().start(True)) if t is not None]
+    if screen == "auto":
+        trees = [s.start(False)] + [t for t in (s.clone().start("l1") if b is not None else None,
+                                                s.clone().start(True)) if t is not None]
+    else:
+        trees = [s.start(screen if screen == "l1" else bool(screen))]
+        if trees[0] is None:
+            raise ValueError("the basis-pursuit order needs driven data (b) and a solvable "
+                             "linear programme")
     t0 = _clock()
     deadline = np.inf if time_limit is None else t0 + time_limit
     run = _Run(client, d, trees, tol, deadline, progress, t0)
