@@ -147,9 +147,10 @@ def add_to(sub) -> None:
     ident.add_argument("--window", type=int, default=None, metavar="N",
                        help="integral form: windows of N samples (default: every window of every run)")
     ident.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="score the supports on a Dask cluster: 'local' (a LocalCluster on this "
-                       "machine) or a running scheduler's address, tcp://host:8786 (needs the "
-                       "optional extra dask[distributed]; the same answer as without)")
+                       help="search the supports on a Dask cluster (exhaustive scoring or branch and "
+                       "bound): 'local' (a LocalCluster on this machine) or a running scheduler's "
+                       "address, tcp://host:8786 (needs the optional extra dask[distributed]; the "
+                       "same answer as without)")
     ident.add_argument("--workers", type=int, default=None, metavar="N",
                        help="with --scheduler local: number of worker processes (default: cores)")
     ident.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",

@@ -131,6 +131,13 @@ class Admissibility:
         return cls(library, bal.X, forced, column_norms(A), balance=bal,
                    scale_system=scale_system, excluded=excluded)
 
+    def __getstate__(self):
+        # pickled for Dask workers (identify/distributed_bnb.py): the library's CasADi expressions
+        # do not pickle, and the rules read only its term names and velocity degrees
+        state = dict(self.__dict__, _jack=None)
+        state["library"] = _TermFacts(self.library)
+        return state
+
     def __call__(self, support, coef):
         if self.excluded & set(support):
             return False, EXCLUDED_REASON
@@ -166,3 +173,18 @@ class Admissibility:
         if not np.all(eig[:, 0] > PD_RTOL * np.maximum(np.abs(eig[:, -1]), 1e-300)):
             return False, "kinetic part not positive definite (∂²E/∂q̇² has a non-positive eigenvalue)"
         return True, "admissible"
+
+
+class _TermFacts:
+    """What the rules read of a :class:`Library` — term names and velocity degrees — without its
+    CasADi expressions: how an :class:`Admissibility` travels to Dask workers."""
+
+    def __init__(self, library):
+        self.names = list(library.names)
+        self._degrees = [library.velocity_degree(j) for j in range(len(self.names))]
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def velocity_degree(self, j: int) -> int | None:
+        return self._degrees[j]

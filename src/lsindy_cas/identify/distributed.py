@@ -10,7 +10,9 @@ order), and the best-first visit that follows runs on the driver unchanged.  Pas
 by the smallest eigenvalue per support) are split into chunks of supports the same way.
 
 Use it with ``LagrangianSINDy(..., client=...)`` or ``lsindy identify --scheduler ADDRESS|local``;
-in code, :func:`using` makes a client the current one for the searches inside the block.
+in code, :func:`using` makes a client the current one for the searches inside the block.  Where the
+library is too large to score every support, the branch and bound runs on the same client
+(:mod:`lsindy_cas.identify.distributed_bnb`: open nodes as tasks, the incumbent shared).
 
 Scaling: the Gram matrix is p² floats (209 terms: 350 kB) whatever the number of samples, so a task
 costs its share of the supports and nothing per sample; results travel back as (n, k) int

@@ -206,8 +206,8 @@ class LagrangianSINDy:
         progress : callable ``(n_done, n_total)``, optional
             Progress of the support search (e.g. :class:`lsindy_cas.progress.ProgressBar`).
         client : dask.distributed.Client, optional
-            Score the supports on this Dask cluster (:mod:`lsindy_cas.identify.distributed`;
-            the same answer as in process).
+            Search the supports on this Dask cluster (:mod:`~lsindy_cas.identify.distributed`,
+            :mod:`~lsindy_cas.identify.distributed_bnb`); the same answer as in process.
         """
         if client is not None:
             from .distributed import using

@@ -217,9 +217,16 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     if beam and automatic and can_extend:
         res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
     elif beam:                                           # fixed k, or no smaller model to extend
-        res = branch_and_bound(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
-                               scale_system=scale_system, time_limit=time_limit, progress=progress,
-                               structure=_local_structure(admissible, p, cols))
+        from .distributed import current
+        client = current()                               # a Dask cluster: subtrees as tasks
+        kw = dict(admissible=adm, D=D if bal.passive else None, scale_system=scale_system,
+                  time_limit=time_limit, progress=progress,
+                  structure=_local_structure(admissible, p, cols))
+        if client is None:
+            res = branch_and_bound(A, bal.b, k, f_loc, **kw)
+        else:
+            from .distributed_bnb import branch_and_bound_distributed
+            res = branch_and_bound_distributed(client, A, bal.b, k, f_loc, **kw)
     else:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress)
