@@ -18,7 +18,7 @@ passive data the smallest eigenvalue of a few nested suffixes bounds all childre
 
 Nodes are expanded best-first (lowest bound; among bounds at round-off, deepest first and then the
 lowest partial score, which makes the first descent the forward-stepwise model).  A node with two
-terms left scores the leaves of all its children in one batch (:mod:`.bnb_leaves`), exactly as
+terms left (rank-deficient data) scores the leaves of all its children in one batch, exactly as
 the exhaustive search does (:func:`.search._score_chunks`).  Leaves are visited through the same rules
 (degenerate, reducible, then ``admissible``): a leaf becomes the incumbent only when it passes them
 all; with more rows than terms every hopeful leaf is examined as scored, with fewer (rank-deficient
@@ -116,7 +116,7 @@ class _Search:
         self.lower_pruned, self.current = np.inf, None
         self.best_first, self.queue, self.n_queued = best_first, [], 0
         self.queued_leaves, self.lower_dropped, self.record = 0, np.inf, np.inf
-        self.eager_all = A.shape[0] >= A.shape[1]      # see leaves()
+        self.eager_all = A.shape[0] >= A.shape[1]      # see leaves(); no pair batches
         self.seen = set()                   # supports examined (shared by the trees of a search)
 
     def clone(self) -> "_Search":
@@ -315,7 +315,7 @@ class _Search:
                 continue
             self.current = node
             self.nodes += 1
-            kids = self.children(node)
+            kids = self.children(node, batch=not self.eager_all)
             self.current, owed = None, not self.best_first
             for ch in kids or ():
                 if ch.bound >= self.incumbent - self.tol:
@@ -406,7 +406,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
     slices = None
     if screen == "auto":
-        l1 = s.clone().start("l1-sparse") if b is not None else None
+        l1 = s.clone().start("l1" if s.eager_all else "l1-sparse") if b is not None else None
         lib = [s.start(False)] + ([] if s.eager_all else [s.clone().start(False, window=True)])
         trees = lib + [t for t in (l1, s.clone().start(True)) if t is not None]
         if b is not None and l1 is None:    # paper runs (bench_bnb): the library order finds it
