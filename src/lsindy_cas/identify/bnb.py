@@ -48,10 +48,9 @@ from typing import Callable
 
 import numpy as np
 
-from .._validate import check_real
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
-from .bnb_drive import drive
+from .bnb_drive import check_inputs, drive
 from .bnb_leaves import SKIP_TOL, pair_positions, passive_bounds, trim_queue
 from .bnb_leaves import suffix_explained as _suffix_explained
 from .screening import _Basis, l1_order, screening_order, structure_of
@@ -386,17 +385,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         ``supports``/``scores`` hold the best scored leaves (at most 2000), not every support.
     """
     m, p = A.shape
-    forced = sorted(set(int(j) for j in forced))
-    k = int(k)
-    if not 1 <= k <= p:
-        raise ValueError(f"n_terms must be between 1 and the library size {p}, got {k}")
-    if len(forced) > k:
-        raise ValueError(f"{len(forced)} prior terms do not fit in n_terms = {k}")
-    time_limit = check_real("time_limit", time_limit, positive=True, allow_none=True)
-    tol = check_real("tol", tol, nonnegative=True)
-    if b is None and D is None:
-        raise ValueError("the passive score needs the gradient matrix D to tell conserved "
-                         "quantities from identities")
+    forced, k, time_limit, tol = check_inputs(A, b, D, k, forced, time_limit, tol)
     if k == len(forced):
         from .search import best_subset
         return best_subset(A, b, k, forced, admissible=admissible, D=D, scale_system=scale_system,

@@ -10,7 +10,9 @@ import time
 
 import numpy as np
 
-__all__ = ["drive"]
+from .._validate import check_real
+
+__all__ = ["drive", "check_inputs"]
 
 REPORT_EVERY = 0.25       # seconds between progress reports (and between trees)
 
@@ -55,3 +57,23 @@ def _report(progress, trees, elapsed):
     status = getattr(progress, "status", None)
     if status is not None:
         status(f"gap {gap:.2e}, best {inc:.3e}, {elapsed:.1f} s")
+
+
+def check_inputs(A, b, D, k, forced, time_limit, tol):
+    """The arguments every branch and bound (one process or a cluster) checks before any work.
+
+    Returns ``(forced sorted without repeats, k, time_limit, tol)``; raises ValueError/TypeError.
+    """
+    p = A.shape[1]
+    forced = sorted(set(int(j) for j in forced))
+    k = int(k)
+    if not 1 <= k <= p:
+        raise ValueError(f"n_terms must be between 1 and the library size {p}, got {k}")
+    if len(forced) > k:
+        raise ValueError(f"{len(forced)} prior terms do not fit in n_terms = {k}")
+    time_limit = check_real("time_limit", time_limit, positive=True, allow_none=True)
+    tol = check_real("tol", tol, nonnegative=True)
+    if b is None and D is None:
+        raise ValueError("the passive score needs the gradient matrix D to tell conserved "
+                         "quantities from identities")
+    return forced, k, time_limit, tol

@@ -65,7 +65,7 @@ import numpy as np
 from .._validate import check_real
 from .admissibility import REDUCIBLE_REASON
 from .bnb import _POOL, SCORE_RESOLUTION, _Search, branch_and_bound, structure_of
-from .bnb_drive import drive
+from .bnb_drive import check_inputs, drive
 from .fitting import coef_on_support
 from .search import Candidate, SearchResult
 
@@ -170,20 +170,10 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
     from .distributed import _distributed
     d = _distributed()
     m, p = A.shape
-    forced = sorted(set(int(j) for j in forced))
-    k = int(k)
-    if not 1 <= k <= p:
-        raise ValueError(f"n_terms must be between 1 and the library size {p}, got {k}")
-    if len(forced) > k:
-        raise ValueError(f"{len(forced)} prior terms do not fit in n_terms = {k}")
-    time_limit = check_real("time_limit", time_limit, positive=True, allow_none=True)
-    tol = check_real("tol", tol, nonnegative=True)
+    forced, k, time_limit, tol = check_inputs(A, b, D, k, forced, time_limit, tol)
     warmup = WARMUP if warmup is None else check_real("warmup", warmup, nonnegative=True)
     task_seconds = (TASK_SECONDS if task_seconds is None
                     else check_real("task_seconds", task_seconds, positive=True))
-    if b is None and D is None:
-        raise ValueError("the passive score needs the gradient matrix D to tell conserved "
-                         "quantities from identities")
     if k == len(forced):
         return branch_and_bound(A, b, k, forced, admissible=admissible, D=D,
                                 scale_system=scale_system, n_report=n_report)
