@@ -43,6 +43,16 @@ def pytest_runtest_setup(item):
 
 
 @pytest.fixture(scope="session")
+def client():
+    """A Dask client on a 2-worker LocalCluster, shared by the Dask tests of one test process
+    (tests marked ``needs("distributed")``: skipped before this runs when it is missing)."""
+    from lsindy_cas.identify.distributed import connect
+    c = connect("local", n_workers=2)
+    yield c
+    c.close()
+
+
+@pytest.fixture(scope="session")
 def cart():
     return systems.cart_pendulum()
 

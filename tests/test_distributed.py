@@ -7,14 +7,6 @@ from lsindy_cas import LagrangianSINDy, Library, systems
 pytestmark = pytest.mark.needs("distributed")
 
 
-@pytest.fixture(scope="module")
-def client():
-    from lsindy_cas.identify.distributed import connect
-    c = connect("local", n_workers=2)
-    yield c
-    c.close()
-
-
 def _spherical(passive):
     s = systems.spherical_pendulum()
     lib = Library.polynomial(s.coords, ["cos(theta)", "sin(theta)", "theta_dot", "phi", "phi_dot"], 4)

@@ -10,14 +10,6 @@ from lsindy_cas.identify.bnb import branch_and_bound
 pytestmark = pytest.mark.needs("distributed")
 
 
-@pytest.fixture(scope="module")
-def client():
-    from lsindy_cas.identify.distributed import connect
-    c = connect("local", n_workers=2)
-    yield c
-    c.close()
-
-
 @pytest.fixture
 def on_workers(monkeypatch):
     """No warm-up and no frontier on the driver: the whole search runs in tasks."""
