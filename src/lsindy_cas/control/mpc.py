@@ -358,32 +358,40 @@ class DiscreteInputMPC:
             if continued:
                 # warm-start the next step from the failed iterate (shifted below), keep
                 # the plan applied now as the fallback of the next failure / IPOPT recovery
-                zs, lgs = self.nlp.shift(zf, lgf)
-                self._fallback = (zs, lgs, self.nlp.shift(lxf, lgf)[0])
+                self._fallback = self._shifted((zf, lgf, lxf))
                 zc, lgc, lxc = z, lam_g, lam_x
             # apply the previous plan (already shifted into z0) and warm-start from it
             z, lam_g, lam_x = zf, lgf, lxf
         else:
             continued = False
         controls, states, _ = self.nlp.unpack(z)
-        self._idle = 0
         if index is not None:
             self.stats.n_balanced += 1
         elif self._lookahead is not None:
             index = self._choose_by_lookahead(x, controls, states)
         else:
             index = self._rounder(self._weights(controls[0]))
-        force = float(self.levels[index])
-        self._last = (x, force)
         self.plan_ = {"controls": controls, "forces": self._forces(controls), "states": states,
                       "success": ok}
         if continued:
             z, lam_g, lam_x = zc, lgc, lxc
-        zs, lgs = self.nlp.shift(z, lam_g)
-        self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+        self._warm = self._shifted((z, lam_g, lam_x))
+        return self._applied(x, index, t_start, c_start)
+
+    def _applied(self, x, index, t_start, c_start):
+        """Record the step (state and force for the online correction, step times) and return
+        the force of level ``index``."""
+        force = float(self.levels[index])
+        self._last = (x, force)
         self.stats.step_times.append(time.perf_counter() - t_start)
         self.stats.step_cpu_times.append(time.thread_time() - c_start)
         return force
+
+    def _shifted(self, plan):
+        """A plan ``(z, lam_g, lam_x)`` shifted one interval ahead (the next step's warm start)."""
+        z, lam_g, lam_x = plan
+        zs, lgs = self.nlp.shift(z, lam_g)
+        return zs, lgs, self.nlp.shift(lam_x, lam_g)[0]
 
     def _catch_up(self):
         """Shift the warm start (and the fallback plan) by the steps decided without a solve:
@@ -391,13 +399,9 @@ class DiscreteInputMPC:
         self.stats.n_resumed += 1
         for _ in range(min(self._idle, self.horizon)):
             if self._warm is not None:
-                z, lam_g, lam_x = self._warm
-                zs, lgs = self.nlp.shift(z, lam_g)
-                self._warm = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+                self._warm = self._shifted(self._warm)
             if self._fallback is not None:
-                z, lam_g, lam_x = self._fallback
-                zs, lgs = self.nlp.shift(z, lam_g)
-                self._fallback = (zs, lgs, self.nlp.shift(lam_x, lam_g)[0])
+                self._fallback = self._shifted(self._fallback)
         self._idle = 0
 
     def _balanced_step(self, x, index, t_start, c_start):
@@ -406,8 +410,4 @@ class DiscreteInputMPC:
         the next solve (:meth:`_catch_up`), to stay aligned in time."""
         self.stats.n_balanced += 1
         self._idle += 1  # the plan is shifted by as many intervals when the next solve runs
-        force = float(self.levels[index])
-        self._last = (x, force)
-        self.stats.step_times.append(time.perf_counter() - t_start)
-        self.stats.step_cpu_times.append(time.thread_time() - c_start)
-        return force
+        return self._applied(x, index, t_start, c_start)
