@@ -107,6 +107,20 @@ def _basis(t: np.ndarray, d: int, breaks=()):
     return _eig(len(t), d, steps, np.asarray(breaks, dtype=np.int64).tobytes())
 
 
+def smoother_map(t: np.ndarray, Q: np.ndarray, lam: float, order: int = 3):
+    """The linear map :func:`smooth` applied to one column of a run: ``(U, f)`` with
+    H = U diag(f) Uᵀ, from the column's penalty ``lam`` as :class:`Smoothed` stores it.
+
+    Only for a run smoothed as one block (at most ``_MAX_BLOCK`` samples); longer runs are smoothed
+    in overlapping blocks and have no single such map.
+    """
+    if len(t) > _MAX_BLOCK:
+        raise ValueError(f"a run of {len(t)} samples is smoothed in blocks of at most "
+                         f"{_MAX_BLOCK}: it has no single smoother matrix")
+    s, U = _basis(t, order, force_switches(Q))
+    return U, 1.0 / (1.0 + lam / s.max() * s)
+
+
 def force_switches(Q: np.ndarray) -> np.ndarray:
     """Samples j at which a piecewise-constant (sample-and-hold) force changes, else empty.
 

@@ -145,7 +145,7 @@ def propagated_std(fit) -> np.ndarray | None:
     fixed-window rows, estimated velocities (their noise comes from the positions), runs longer
     than one smoothing block.
     """
-    from ..data.smoothing import _MAX_BLOCK, _basis, force_switches
+    from ..data.smoothing import _MAX_BLOCK, smoother_map
     bal, coef = fit.balance, np.asarray(fit.coef, float)
     S = np.flatnonzero(coef)
     if (bal.passive or bal.b is None or bal.dissipation is not None or not fit.smoothing
@@ -167,7 +167,6 @@ def propagated_std(fit) -> np.ndarray | None:
         smoothed = np.allclose(bal.X[rows], sm.trajectory.X, rtol=0, atol=1e-12 * (
             1 + np.abs(sm.trajectory.X).max()))
         B = np.sqrt(w[rows])[:, None] * A[rows]            # Aᵀ ε = Bᵀ u (rows already centred)
-        s, U = _basis(tr.t, 3, force_switches(tr.Q))
         rule = bal.work_rules[g] if bal.work_rules else "quadrature"
         for k in range(2 * n_c):
             if not sm.noise[k] > 0:
@@ -177,7 +176,7 @@ def propagated_std(fit) -> np.ndarray | None:
             if T is not None:
                 Lk = Lk - B.T @ T
             if smoothed and sm.lam[k] > 0:
-                f = 1.0 / (1.0 + sm.lam[k] / s.max() * s)
+                U, f = smoother_map(tr.t, tr.Q, sm.lam[k])
                 Lk = ((Lk @ U) * f) @ U.T                    # · H_k = U diag(f) Uᵀ
             M += sm.noise[k] ** 2 * (Lk @ Lk.T)
     G = A.T @ A
