@@ -236,24 +236,28 @@ def _robust_noise(t, Y, d) -> np.ndarray:
     return np.median(np.abs(D @ Y), axis=0) / (0.6745 * np.median(np.linalg.norm(D, axis=1)))
 
 
+def _blocks(n: int, breaks):
+    """Overlapping windows [lo, hi) of at most ``_MAX_BLOCK`` samples covering n samples: yields
+    (lo, hi, start, stop, the switches inside the window relative to lo); each window's result is
+    kept on [start, stop) only, away from its edges (``_OVERLAP``)."""
+    step, start = _MAX_BLOCK - 2 * _OVERLAP, 0
+    while start < n:
+        hi = min(n, max(0, start - _OVERLAP) + _MAX_BLOCK)
+        lo = max(0, hi - _MAX_BLOCK)
+        stop = min(n, start + step) if hi < n else n
+        yield lo, hi, start, stop, breaks[(breaks > lo) & (breaks < hi)] - lo
+        start = stop
+
+
 def _whittaker_blocks(t, Y, d, lam, undersmooth, breaks):
     """Overlapping blocks of ≤ _MAX_BLOCK samples; each keeps its central part."""
-    n, m = Y.shape
     Z, err = np.empty_like(Y), np.empty_like(Y)
     stats = []
-    step = _MAX_BLOCK - 2 * _OVERLAP
-    start = 0
-    while start < n:
-        lo = max(0, start - _OVERLAP)
-        hi = min(n, lo + _MAX_BLOCK)
-        lo = max(0, hi - _MAX_BLOCK)
-        br = breaks[(breaks > lo) & (breaks < hi)] - lo
+    for lo, hi, start, stop, br in _blocks(len(Y), breaks):
         Zb, noise_b, err_b, lam_b = _whittaker_block(t[lo:hi], Y[lo:hi], d, lam, undersmooth, br)
-        stop = min(n, start + step) if hi < n else n
         Z[start:stop] = Zb[start - lo:stop - lo]
         err[start:stop] = err_b[start - lo:stop - lo]
         stats.append((stop - start, noise_b, lam_b))
-        start = stop
     w = np.array([c for c, _, _ in stats], float)
     noise = np.sqrt(np.average(np.array([s[1] for s in stats]) ** 2, axis=0, weights=w))
     lams = np.exp(np.average(np.log(np.maximum(np.array([s[2] for s in stats]), 1e-300)), axis=0,

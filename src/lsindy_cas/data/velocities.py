@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .smoothing import _MAX_BLOCK, _OVERLAP, _basis, _whittaker_block, force_switches
+from .smoothing import _MAX_BLOCK, _basis, _blocks, _whittaker_block, force_switches
 
 __all__ = ["VelocityEstimate", "estimate_velocities", "truncation_error", "MIN_POSITION_SAMPLES",
            "MIN_POSITION_STEPS"]
@@ -163,18 +163,13 @@ def estimate_velocities(t, q, Q=None, *, order: int = 3, undersmooth: float = 1.
         Z, V, noise, err, trunc = _velocity_block(t, q2, order, undersmooth, breaks)
     else:                                      # overlapping blocks, each keeps its central part
         Z, V, err, trunc = (np.empty_like(q2) for _ in range(4))
-        stats, step, start = [], _MAX_BLOCK - 2 * _OVERLAP, 0
-        while start < n:
-            hi = min(n, max(0, start - _OVERLAP) + _MAX_BLOCK)
-            lo = max(0, hi - _MAX_BLOCK)
-            br = breaks[(breaks > lo) & (breaks < hi)] - lo
+        stats = []
+        for lo, hi, start, stop, br in _blocks(n, breaks):
             Zb, Vb, noise_b, err_b, tr_b = _velocity_block(t[lo:hi], q2[lo:hi], order,
                                                            undersmooth, br)
-            stop = min(n, start + step) if hi < n else n
             Z[start:stop], V[start:stop] = Zb[start - lo:stop - lo], Vb[start - lo:stop - lo]
             err[start:stop], trunc[start:stop] = err_b[start - lo:stop - lo], tr_b[start - lo:stop - lo]
             stats.append((stop - start, noise_b))
-            start = stop
         w = np.array([c for c, _ in stats], float)
         noise = np.sqrt(np.average(np.array([s for _, s in stats]) ** 2, axis=0, weights=w))
     return VelocityEstimate(Z, V, noise, np.sqrt(err ** 2 + trunc ** 2), trunc)
