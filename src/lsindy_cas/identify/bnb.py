@@ -50,7 +50,7 @@ import numpy as np
 
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
-from .bnb_drive import check_inputs, drive
+from .bnb_drive import check_inputs, drive, nothing_admissible
 from .bnb_leaves import SKIP_TOL, pair_positions, passive_bounds, trim_queue
 from .bnb_leaves import suffix_explained as _suffix_explained
 from .screening import _Basis, l1_order, screening_order, structure_of
@@ -416,11 +416,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     if s.winner is None and interrupted:
         raise KeyboardInterrupt            # nothing to return: let the caller stop
     if s.winner is None:
-        why = "; ".join(sorted({c.reason for c in s.candidates if c.reason}))
-        raise ValueError(f"no physically admissible {k}-term model "
-                         + ("among all supports" if proven else f"found in {seconds:.1f} s")
-                         + f" ({s.nodes:,} nodes, {s.n_leaves:,} supports scored"
-                         + (f"; reasons: {why})" if why else ")"))
+        raise nothing_admissible(k, s.candidates, proven, seconds, s.nodes, s.n_leaves)
     s._trim_pool()
     sup, sc = s.pool_S[0], s.pool_s[0]
     w = s.winner

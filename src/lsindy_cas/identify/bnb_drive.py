@@ -12,7 +12,7 @@ import numpy as np
 
 from .._validate import check_real
 
-__all__ = ["drive", "check_inputs"]
+__all__ = ["drive", "check_inputs", "nothing_admissible"]
 
 REPORT_EVERY = 0.25       # seconds between progress reports (and between trees)
 
@@ -77,3 +77,13 @@ def check_inputs(A, b, D, k, forced, time_limit, tol):
         raise ValueError("the passive score needs the gradient matrix D to tell conserved "
                          "quantities from identities")
     return forced, k, time_limit, tol
+
+
+def nothing_admissible(k, candidates, proven, seconds, nodes, n_leaves) -> ValueError:
+    """The error of a branch and bound that examined no admissible support, with the reasons its
+    candidates were refused."""
+    why = "; ".join(sorted({c.reason for c in candidates if c.reason}))
+    return ValueError(f"no physically admissible {k}-term model "
+                      + ("among all supports" if proven else f"found in {seconds:.1f} s")
+                      + f" ({nodes:,} nodes, {n_leaves:,} supports scored"
+                      + (f"; reasons: {why})" if why else ")"))

@@ -65,7 +65,7 @@ import numpy as np
 from .._validate import check_real
 from .admissibility import REDUCIBLE_REASON
 from .bnb import _POOL, SCORE_RESOLUTION, _Search, branch_and_bound, structure_of
-from .bnb_drive import check_inputs, drive
+from .bnb_drive import check_inputs, drive, nothing_admissible
 from .fitting import coef_on_support
 from .search import Candidate, SearchResult
 
@@ -371,11 +371,8 @@ class _Run:
         if w is None and self.interrupted:
             raise KeyboardInterrupt
         if w is None:
-            why = "; ".join(sorted({c.reason for c in s.candidates + self.candidates if c.reason}))
-            raise ValueError(f"no physically admissible {k}-term model "
-                             + ("among all supports" if proven else f"found in {seconds:.1f} s")
-                             + f" ({nodes:,} nodes, {n_leaves:,} supports scored"
-                             + (f"; reasons: {why})" if why else ")"))
+            raise nothing_admissible(k, s.candidates + self.candidates, proven, seconds, nodes,
+                                     n_leaves)
         lower = self.lower()
         pool_S = [x for t in trees for x in t.pool_S] + [P[0] for P in self.pools]
         pool_s = [x for t in trees for x in t.pool_s] + [P[1] for P in self.pools]
