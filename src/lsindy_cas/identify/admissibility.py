@@ -31,7 +31,7 @@ from ..symbolic.library import Library
 from .fitting import column_norms
 from .uncertainty import T_CRIT, Jackknife
 
-__all__ = ["Admissibility", "reducible", "REDUCIBLE_TOL", "REDUCIBLE_REASON", "NO_SCALE_REASON",
+__all__ = ["Admissibility", "reducible", "clearly_not_pd", "REDUCIBLE_TOL", "REDUCIBLE_REASON", "NO_SCALE_REASON",
            "PRIOR_SHARE_TOL", "PD_RTOL"]
 
 # A prior term "is present" when its share of the fitted signal exceeds this fraction of the
@@ -42,6 +42,9 @@ PD_RTOL = 1e-9
 # A support is reducible when its smallest normalised coefficient is below this fraction of the
 # largest: exact traps put ~1e-12 there, genuine terms ≥ 1e-3 even when small.
 REDUCIBLE_TOL = 1e-6
+# The batched pre-check of rule 5 (clearly_not_pd) marks a support only when λ_min(M) is below
+# −PD_MARGIN·max|λ|: far outside what the normal equations' round-off can move.
+PD_MARGIN = 1e-3
 REDUCIBLE_REASON = "a coefficient came out zero: the support is really a smaller one"
 NO_SCALE_REASON = "scale trial cannot fix the scale"
 EXCLUDED_REASON = ("uses a coordinate whose coefficient a constant input leaves "
@@ -81,6 +84,43 @@ def reducible(G: np.ndarray, c: np.ndarray | None, S: np.ndarray, tol: float = R
         a = np.abs(v)
         out[lo:lo + chunk] = ~(a.min(axis=1) > tol * a.max(axis=1))
     return out
+
+
+def clearly_not_pd(hess: np.ndarray, G: np.ndarray, c: np.ndarray, scales: np.ndarray,
+                   S: np.ndarray, margin: float = PD_MARGIN) -> np.ndarray:
+    """Rule 5, batched, for driven data: is the kinetic part of each support's least-squares fit
+    *clearly* not positive definite at one of the given states?
+
+    The coefficients come from the normal equations (``G``, ``c`` of
+    :func:`~lsindy_cas.identify.fitting.normal_equations`, ``scales`` the column norms), and a
+    support is marked only when ``λ_min(M) < −margin · max|λ(M)|`` at some state, so that the
+    normal equations' round-off cannot mark a support that the full rule (on a least-squares fit,
+    at these and more states) would pass.  Used to skip fitting such supports one by one.
+
+    Parameters
+    ----------
+    hess : array (s, n, n, p)
+        ∂²θ_j/∂q̇∂q̇ at some of the sample states (a subset of those :class:`Admissibility`
+        checks), in the columns of ``G``.
+    G, c : arrays (p, p), (p,)
+    scales : array (p,)
+    S : int array (B, k)
+
+    Returns
+    -------
+    bool array (B,); a block whose Gram matrices are singular is left unmarked.
+    """
+    S = np.asarray(S, dtype=np.int64)
+    with np.errstate(all="ignore"):
+        try:
+            v = np.linalg.solve(G[S[:, :, None], S[:, None, :]], c[S][:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:
+            return np.zeros(len(S), dtype=bool)
+        coef = v / scales[S]                                   # (B, k), data units
+        M = np.einsum("sikbj,bj->bsik", hess[..., S], coef)    # (B, s, n, n)
+        lam = np.linalg.eigvalsh(M)
+    bad = lam[..., 0] < -margin * np.abs(lam).max(axis=-1)
+    return np.nan_to_num(bad, nan=False).any(axis=1) & np.isfinite(lam).all(axis=(1, 2))
 
 
 class Admissibility:

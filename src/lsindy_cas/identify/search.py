@@ -23,8 +23,8 @@ from typing import Callable
 
 import numpy as np
 
-from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
-from .fitting import coef_on_support, normal_equations, normalise_columns
+from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, clearly_not_pd, reducible
+from .fitting import coef_on_support, column_norms, normal_equations, normalise_columns
 from .subset_tree import tree_scores
 
 __all__ = ["combinations", "Candidate", "SearchResult", "Visit", "best_subset", "visit", "score_all",
@@ -208,7 +208,8 @@ def _score_chunks(G, GD, c, bb, supports, scores, degenerate, progress):
 def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                 admissible: Callable | None = None, D: np.ndarray | None = None,
                 scale_system: tuple | None = None, max_visits: int = 20_000,
-                n_report: int = 10, progress: Callable | None = None) -> SearchResult:
+                n_report: int = 10, progress: Callable | None = None,
+                structure: tuple | None = None, kinetic: np.ndarray | None = None) -> SearchResult:
     """Best k-term support of ``A ξ ≈ b`` (or of a null vector of ``A`` when ``b`` is None).
 
     Parameters
@@ -232,6 +233,10 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         How many of the best supports may be examined for admissibility before giving up.
     progress : callable ``(n_done, n_total)``, optional
         Progress callback for the scoring pass.
+    structure : (banned, required), optional
+        What the admissibility rules rule out before any fit (:func:`visit`).
+    kinetic : array (s, n, n, p), optional
+        Driven data: ∂²θ/∂q̇∂q̇ at some sample states, for the batched kinetic rule (:func:`visit`).
     """
     m, p = A.shape
     forced = sorted(set(int(j) for j in forced))
@@ -241,7 +246,7 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         raise ValueError(f"{len(forced)} prior terms do not fit in n_terms = {k}")
     supports, scores, degenerate = score_all(A, b, k, forced, D, progress)
     v = visit(A, b, supports, scores, degenerate, admissible=admissible, scale_system=scale_system,
-              max_visits=max_visits, n_report=n_report)
+              max_visits=max_visits, n_report=n_report, structure=structure, kinetic=kinetic)
     if v.winner is None:
         raise ValueError(f"no physically admissible {k}-term model among the {v.n_examined} best "
                          "supports; try another n_terms, prior or library (reasons: "
@@ -265,9 +270,32 @@ class Visit:
                             int(degenerate.sum()), self.null_dim, scores, supports, self.n_reducible)
 
 
+def structurally_inadmissible(structure: tuple, S: np.ndarray) -> np.ndarray:
+    """Which supports (rows of ``S``) the rules reject before any fit: a banned term, or no term
+    of one of the required sets (``structure = (banned, required)``,
+    :func:`~lsindy_cas.identify.screening.structure_of`)."""
+    banned, required = structure
+    S = np.asarray(S, dtype=np.int64)
+    p = int(S.max()) + 1 if S.size else 0
+    for r in required:
+        if len(r):
+            p = max(p, int(np.max(r)) + 1)
+    if banned:
+        p = max(p, max(int(j) for j in banned) + 1)
+    bad = np.zeros(p, dtype=bool)
+    bad[list(banned)] = True
+    out = bad[S].any(axis=1)
+    for r in required:
+        hit = np.zeros(p, dtype=bool)
+        hit[np.asarray(r, dtype=np.int64)] = True
+        out |= ~hit[S].any(axis=1)
+    return out
+
+
 def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.ndarray,
           degenerate: np.ndarray, *, admissible: Callable | None = None,
-          scale_system: tuple | None = None, max_visits: int = 20_000, n_report: int = 10) -> Visit:
+          scale_system: tuple | None = None, max_visits: int = 20_000, n_report: int = 10,
+          structure: tuple | None = None, kinetic: np.ndarray | None = None) -> Visit:
     """Visit the scored supports best-first; the first one that passes every rule wins.
 
     Shared by the exhaustive search and the beam of :mod:`lsindy_cas.identify.selection`.  Per
@@ -275,13 +303,32 @@ def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.
     (:func:`lsindy_cas.identify.admissibility.reducible`); each other one is fitted
     (:func:`lsindy_cas.identify.fitting.coef_on_support`) and judged by ``admissible``.  At most
     ``max_visits`` supports are fitted; ``n_report`` reducible ones and ``n_report`` runners-up
-    are kept for the diagnostics.
+    are kept for the diagnostics.  With ``structure`` (``(banned, required)`` of
+    :func:`~lsindy_cas.identify.screening.structure_of`, in the columns of ``A``) the supports
+    that the rules reject before any fit (a banned term, or no term of a required set) are not
+    visited, except the ``n_report`` best-scoring of them (fitted and judged as before, so the
+    diagnostics keep their reasons): the rules are exact, so the winner is the same, found with
+    fewer fits — or found at all, where inadmissible ones used to exhaust ``max_visits``.
+    With ``kinetic`` (driven data: ∂²θ/∂q̇∂q̇ at some sample states, shape (s, n, n, p), in the
+    columns of ``A``) the supports of a block whose fit is clearly not positive definite
+    (:func:`~lsindy_cas.identify.admissibility.clearly_not_pd`, batched) count as visited but
+    are not fitted one by one, again except the first ``n_report`` of them: same winner, same
+    stopping point, fewer fits.
     """
     keys = np.where(degenerate, np.inf, scores)
-    n_ok = int((~degenerate).sum())
+    if structure is not None:          # ruled out before any fit: never visited (docstring)
+        ruled = np.flatnonzero(~degenerate & structurally_inadmissible(structure, supports))
+        if len(ruled) > n_report:      # but the best n_report of them, for their reasons
+            best = np.argpartition(keys[ruled], n_report)[:n_report]
+            keys[np.delete(ruled, best)] = np.inf
+    n_ok = int(np.isfinite(keys).sum())
     order = _best_first(keys, min(n_ok, 8192))
     G, c = normal_equations(A, b)
     candidates, winner, null_dim, n_visited, n_reducible, pos = [], None, 0, 0, 0, 0
+    n_pre, scales = 0, None
+    if kinetic is not None and c is not None:
+        scales = column_norms(A)
+        scales = np.where(scales > 0, scales, 1.0)
     while pos < n_ok and n_visited < max_visits and winner is None:
         if pos + 256 > len(order) and len(order) < n_ok:
             order = _best_first(keys, min(n_ok, 4 * len(order)))
@@ -290,6 +337,13 @@ def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.
         # the first n_report of those and the others are looked at one by one, in order
         red = reducible(G, c, supports[block])
         n_red = np.cumsum(red)
+        pre = np.zeros(len(block), dtype=bool)      # clearly not positive definite (docstring)
+        if scales is not None and not red.all():
+            live = np.flatnonzero(~red)
+            pre[live] = clearly_not_pd(kinetic, G, c, scales, supports[block[live]])
+            marked = np.flatnonzero(pre)
+            pre[marked[:max(0, n_report - n_pre)]] = False
+            n_pre += len(marked)
         look = np.union1d(np.flatnonzero(red)[:max(0, n_report - n_reducible)],
                           np.flatnonzero(~red))
         base, start = n_reducible, pos
@@ -301,6 +355,8 @@ def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.
                 candidates.append(Candidate(S, float(scores[idx]), False, REDUCIBLE_REASON))
                 continue
             n_visited += 1
+            if pre[j]:
+                continue
             coef, nd = coef_on_support(A, b, S, scale_system)
             cand = Candidate(S, float(scores[idx]), coef=coef)
             if coef is None:

@@ -33,8 +33,10 @@ imitation held-out errors 10× smaller but χ = 2.1–3.3.
 
 Where scoring every support is too much (more than ``EXHAUSTIVE`` supports): when k is given,
 branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given), and so
-in the automatic scan of k when no smaller model is there to extend (``time_limit`` seconds, or
-``AUTO_TIME_LIMIT`` for the whole scan without one; the search says whether it was proven); otherwise the candidates
+in the automatic scan of k when no smaller model is there to extend (a scout of at most
+``SCOUT_LIMIT`` seconds, within ``time_limit`` or, without one, within ``AUTO_TIME_LIMIT`` for the
+whole scan; the k chosen is then searched again with the whole limit for its certificate, and the
+search says whether it was proven); otherwise the candidates
 are the one-term extensions of the best ``BEAM`` supports of the level below (fast, not exact:
 above the true k every near-perfect support is a smaller one in disguise, which an exact search of
 the best *admissible* support would have to rule out one by one).
@@ -69,6 +71,12 @@ MAX_EXTRA = 8              # automatic k: at most this many terms beyond the pri
 # to extend gets no branch and bound (the elastic pendulum without priors: no admissible model
 # below k = 4 of its 5 terms); one budget for the scan, so a refusal never takes minutes per k.
 AUTO_TIME_LIMIT = 60.0
+# Automatic k: a branch and bound in the scan (no smaller model to extend) runs at most this long —
+# a scout: what the scan compares across k is the best model each k offers, which the search finds
+# early (double pendulum, rich σ = 1e-2: the k = 4 incumbent of a 60 s search was there at 5 s;
+# proving it best needs far more: below k = 6 no bound is above the round-off of a superset fit).
+# The k finally chosen is searched again with the whole time limit for its certificate.
+SCOUT_LIMIT = 5.0
 # Held-out errors below this (a relative residual of 1e-9, the accuracy of a simulation at
 # rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
 _CV_FLOOR = 1e-18
@@ -208,20 +216,24 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     n_free = len(cols.keep) - len(f_loc)
     beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score every support
     can_extend = prev is not None and prev.search is not None and prev.search.supports is not None
-    if beam and automatic and not can_extend and time_limit is None:
-        if auto_limit <= 0:
+    if beam and automatic and not can_extend:
+        if time_limit is None and auto_limit <= 0:
             raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms and the "
                              f"automatic scan's {AUTO_TIME_LIMIT:g} s of branch and bound are "
                              "spent: give n_terms, prior terms or a time limit")
-        time_limit = auto_limit          # branch and bound, reported as not proven if cut short
+        # a scout (SCOUT_LIMIT), reported as not proven if cut short; select() certifies the
+        # chosen k with the whole budget
+        time_limit = min(auto_limit if time_limit is None else time_limit, SCOUT_LIMIT)
+    structure = _local_structure(admissible, p, cols)     # what the rules exclude before a fit
+    kinetic = _local_kinetic(admissible, p, cols) if bal.b is not None else None
     if beam and automatic and can_extend:
-        res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system)
+        res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system, structure=structure,
+                    kinetic=kinetic)
     elif beam:                                           # fixed k, or no smaller model to extend
         from .distributed import current
         client = current()                               # a Dask cluster: subtrees as tasks
         kw = dict(admissible=adm, D=D if bal.passive else None, scale_system=scale_system,
-                  time_limit=time_limit, progress=progress,
-                  structure=_local_structure(admissible, p, cols))
+                  time_limit=time_limit, progress=progress, structure=structure)
         if client is None:
             res = branch_and_bound(A, bal.b, k, f_loc, **kw)
         else:
@@ -229,7 +241,8 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
             res = branch_and_bound_distributed(client, A, bal.b, k, f_loc, **kw)
     else:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
-                          scale_system=scale_system, progress=progress)
+                          scale_system=scale_system, progress=progress, structure=structure,
+                          kinetic=kinetic)
     res.support = cols.full(res.support)
     res.coef = cols.full_coef(res.coef, p)
     for c in res.candidates:
@@ -252,8 +265,17 @@ def _local_structure(admissible, p, cols):
     return banned, required
 
 
+def _local_kinetic(admissible, p, cols, n_states=50):
+    """∂²θ/∂q̇∂q̇ at up to ``n_states`` of the states the kinetic rule checks, in the searched
+    columns (for the batched rule in :func:`~lsindy_cas.identify.search.visit`), or None."""
+    hess = getattr(admissible, "hess", None)
+    if hess is None or hess.shape[-1] != p:
+        return None
+    return hess[::max(1, len(hess) // n_states)][..., cols.keep]
+
+
 def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_report=10,
-          max_visits=MAX_VISITS):
+          max_visits=MAX_VISITS, structure=None, kinetic=None):
     """Score the one-term extensions of the best BEAM supports of size k − 1 (local indices)."""
     order = np.argsort(prev.scores, kind="stable")[:BEAM]
     base = np.array([cols.local(S) for S in prev.supports[order]], dtype=np.int64)
@@ -265,7 +287,7 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
     S = np.unique(S, axis=0)
     scores, degenerate = score_supports(A, b, S, D if b is None else None)
     v = visit(A, b, S, scores, degenerate, admissible=admissible, scale_system=scale_system,
-              max_visits=max_visits, n_report=n_report)
+              max_visits=max_visits, n_report=n_report, structure=structure, kinetic=kinetic)
     if v.winner is None:
         raise ValueError(f"no physically admissible {k}-term model among the one-term extensions "
                          "of the best smaller models")
@@ -351,7 +373,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
                          "the input, add runs or check the library (" + "; ".join(reasons[:3]) + ")")
     if fits is not None and fits.k < best.k:
         best = fits
-    if best.search is not None and best.search.method == "beam":
+    if best.search is not None and (best.search.method == "beam" or not best.search.proven):
         best = _certify(bal, best, steps, forced, cols, admissible, scale_system, progress, noise,
                         folds, time_limit if time_limit is not None else deadline - time.monotonic())
     return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded)
@@ -359,9 +381,10 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
 
 def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress, noise, folds,
              time_limit) -> Step:
-    """The chosen k came from the beam (no certificate): search it again by branch and bound
-    (``time_limit`` seconds; skipped below one) and keep its answer — the same support, now with a
-    certificate, or a better-scoring admissible one the beam missed; the beam's when it finds none."""
+    """The chosen k came from the beam or a scout (no certificate): search it again by branch and
+    bound (``time_limit`` seconds; skipped below one) and keep its answer — the same support, now
+    with a certificate, or a better-scoring admissible one the first search missed; the first
+    search's when it finds none."""
     if time_limit < 1.0:
         return step
     try:
