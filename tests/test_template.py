@@ -112,8 +112,24 @@ def test_ode_equals_the_sympy_route():
 def test_rounded_printout_merges_monomials():
     model = _model(systems.spherical_pendulum(), "spherical")
     out = str(model)
-    assert "H = 9.81*cos(theta) + 0.5*theta_dot**2 + 0.5*phi_dot**2*sin(theta)**2" in out
+    assert "H = 0.5*phi_dot**2*sin(theta)**2 + 0.5*theta_dot**2 + 9.81*cos(theta)" in out
     assert "1.0*phi_ddot*sin(theta)**2 = Q_phi - 2.0*phi_dot*theta_dot*sin(theta)*cos(theta)" in out
+
+
+@pytest.mark.parametrize("name", ["spherical", "cart", "double"])
+def test_sums_print_as_sympy_prints_them(name):
+    """Same string as sympy's, term order included, for random 4-term sums of the library."""
+    setup = PAPER_SETUPS[name]
+    coords = {"spherical": ["theta", "phi"], "cart": ["x", "theta"],
+              "double": ["theta1", "theta2"]}[name]
+    lib = Library.polynomial(coords, setup.features, setup.degree)
+    rng = np.random.default_rng(5)
+    for _ in range(40):
+        S = rng.choice(len(lib), 4, replace=False)
+        coef = np.zeros(len(lib))
+        coef[S] = rng.standard_normal(4)
+        ref = str(sp.Add(*[sp.Float(coef[j], 15) * lib.exprs[j] for j in S]))
+        assert text(lib.template.combine(coef), 15) == ref
 
 
 @pytest.mark.parametrize("x", [0.5, 1.0, -9.81, 1e-5, 1.5e-5, 123456789012345.0, 1e15, 2.5e16,

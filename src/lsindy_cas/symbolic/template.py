@@ -15,6 +15,8 @@ of different terms are equal strings and merge).  The record is kept in the disk
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from . import fcache
@@ -127,7 +129,7 @@ def text(terms: dict, dps: int, lead: str | None = None) -> str:
     """``{monomial: coefficient}`` as one sympy-syntax sum (``lead``, e.g. ``Q_x``, first with
     coefficient 1); coefficients printed with ``dps`` significant digits, zeros dropped."""
     parts = [] if lead is None else [(False, lead)]
-    for mono, a in terms.items():
+    for mono, a in _ordered(terms):
         if a == 0:
             continue
         num = format_float(abs(a), dps)
@@ -138,6 +140,57 @@ def text(terms: dict, dps: int, lead: str | None = None) -> str:
     for neg, s in parts[1:]:
         out += (" - " if neg else " + ") + s
     return out
+
+
+def _factors(mono: str) -> dict | None:
+    """``"phi_dot**2*sin(theta)**2"`` -> {"phi_dot": 2, "sin(theta)": 2}; None if not a plain
+    product of powers (e.g. a quotient)."""
+    pieces, depth, start, k = [], 0, 0, 0
+    while k < len(mono):
+        ch = mono[k]
+        depth += (ch == "(") - (ch == ")")
+        if ch == "*" and depth == 0:
+            if mono[k + 1:k + 2] == "*":           # a power: skip "**"
+                k += 2
+                continue
+            pieces.append(mono[start:k])
+            start = k + 1
+        k += 1
+    pieces.append(mono[start:])
+    out = {}
+    for piece in pieces:
+        base, _, exp = piece.partition("**")
+        if "/" in piece or not base or (exp and not exp.isdigit()):
+            return None
+        out[base] = out.get(base, 0) + (int(exp) if exp else 1)
+    return out
+
+
+# sympy's order of functions among the generators of a sum (its Function.class_key)
+_FUNC_ORDER = {"exp": 10, "log": 11, "sin": 20, "cos": 21, "tan": 22, "cot": 23, "sinh": 30,
+               "cosh": 31, "tanh": 32, "coth": 33}
+_CALL = re.compile(r"^([A-Za-z_]\w*)\((.*)\)$")
+
+
+def _gen_key(g: str) -> tuple:
+    """Symbols alphabetically, then functions in sympy's order, then anything else."""
+    if g.isidentifier():
+        return (0, 0, g, "")
+    call = _CALL.match(g)
+    if call:
+        return (1, _FUNC_ORDER.get(call.group(1), 10000), call.group(1), call.group(2))
+    return (2, 0, g, "")
+
+
+def _ordered(terms: dict) -> list:
+    """The terms in the order sympy prints a sum (lexicographic in the exponents, the symbols
+    alphabetically, then the functions), as far as it can be read from the strings; the rest in
+    their given order after them."""
+    facs = {m: ({} if m == "1" else _factors(m)) for m in terms}
+    gens = sorted({g for f in facs.values() if f for g in f}, key=_gen_key)
+    key = {m: tuple(-f.get(g, 0) for g in gens) for m, f in facs.items() if f is not None}
+    plain = sorted((m for m in terms if m in key), key=lambda m: key[m])
+    return [(m, terms[m]) for m in plain + [m for m in terms if m not in key]]
 
 
 def _valid(rec, p: int) -> bool:
