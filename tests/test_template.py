@@ -144,6 +144,33 @@ def test_text_signs_and_constants():
     assert text({}, 15) == "0"
 
 
+def test_rows_cached_for_the_model_terms_only_and_rebuilt_when_damaged(tmp_path, monkeypatch):
+    monkeypatch.setenv("LSINDY_CACHE_DIR", str(tmp_path / "cache"))
+    model = _model(systems.spherical_pendulum(), "spherical")
+    first = model.texts(15)
+    (rows,) = (tmp_path / "cache").glob("rows-*.json")
+    assert sorted(json.loads(rows.read_text())["terms"]) == sorted(model.terms())
+    rows.write_text(rows.read_text()[:40])                    # a truncated record: a miss
+    again = _model(systems.spherical_pendulum(), "spherical")
+    assert again.texts(15) == first
+
+
+def test_model_file_loads_without_sympy_when_warm(tmp_path):
+    """A saved model is read back (library from the cache, coefficients by name, mass-matrix
+    check in CasADi) in a process that never imports sympy."""
+    env = dict(os.environ, LSINDY_CACHE_DIR=str(tmp_path / "cache"),
+               PYTHONPATH=os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]))
+    code = ("import sys; from lsindy_cas import LagrangianSINDy; "
+            "m = LagrangianSINDy.load(sys.argv[1]); print(m.texts(15)['hamiltonian']); "
+            "print('sympy' in sys.modules)")
+    model = _model(systems.cart_pendulum(), "cart")
+    path = model.save(tmp_path / "m.json")
+    out = [subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                          text=True, env=env, check=True).stdout.split("\n") for _ in range(2)]
+    assert out[0][0] == out[1][0] == model.texts(15)["hamiltonian"]
+    assert out[1][1] == "False"                       # the second process: cache warm
+
+
 def _identify(tmp, csv, out, cache):
     """`lsindy identify` in a child Python (cli.main in process); returns whether sympy was
     imported by the end of the run."""

@@ -7,8 +7,12 @@ forming a polynomial library's products in sympy about as long again; both depen
 library's definition, not on data, so a library seen before loads them instead (CasADi's own
 serialisation; the names as text, each term parsed from its name only when it is used).
 
+The same store keeps the per-term templates of :mod:`.template` (velocity degrees, positions,
+expanded Euler-Lagrange rows) as JSON records, so that a library seen before needs no sympy at all.
+
 Safety: the key hashes everything the Functions depend on — the cache format, the versions of
-lsindy_cas, CasADi and sympy, the coordinate names and every term's name (a name is the term's
+lsindy_cas, CasADi and sympy (sympy's read from its ``release.py``, without importing it), the
+coordinate names and every term's name (a name is the term's
 sympy string, which determines the expression); a file is written whole or not at all
 (:func:`lsindy_cas._io.atomic_write`); and the cache never breaks a run: a missing, unreadable,
 corrupt or mismatched file is rebuilt, and a read-only, full or missing cache directory only means
