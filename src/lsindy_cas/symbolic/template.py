@@ -87,11 +87,12 @@ class Template:
         """Equations of motion as ``(lhs, rhs)`` strings in sympy syntax, one per coordinate:
         lhs the monomials with an acceleration ``<q>_ddot``, rhs ``Q_<q>`` minus the rest (and
         minus the friction force ∂R/∂q̇_i: ``friction = (template of R's terms, ρ)``)."""
+        accel = re.compile(r"\b(" + "|".join(re.escape(c + "_ddot") for c in self.coords) + r")\b")
         out = []
         for i, c in enumerate(self.coords):
             row = self.combine(coef_l, "el", i)
-            lhs = {m: a for m, a in row.items() if "_ddot" in m}
-            rhs = {m: -a for m, a in row.items() if "_ddot" not in m}
+            lhs = {m: a for m, a in row.items() if accel.search(m)}
+            rhs = {m: -a for m, a in row.items() if not accel.search(m)}
             if friction is not None and np.any(friction[1]):
                 for m, a in friction[0].combine(friction[1], "dqd", i).items():
                     rhs[m] = rhs.get(m, 0.0) - a
