@@ -202,3 +202,10 @@ def test_warm_identify_does_not_import_sympy(tmp_path):
         assert _same(al, bl, names) and _same(ar, br, names)
     assert warm["hamiltonian_terms"] == cold["hamiltonian_terms"]
     assert LagrangianSINDy.load(tmp_path / "warm.json").terms() == cold["hamiltonian_terms"]
+
+
+def test_cache_key_reads_sympy_version_without_importing_it(monkeypatch):
+    from lsindy_cas.symbolic import fcache
+    monkeypatch.delitem(sys.modules, "sympy")          # as in a process that never imported it
+    assert fcache.sympy_version.__wrapped__() == sp.__version__   # from sympy/release.py
+    assert "sympy" not in sys.modules
