@@ -20,7 +20,9 @@ CPU); ``--no-compile`` skips that step.
 
 Also: the import time of the CLI and the time of each stage of one ``lsindy identify`` run, in
 process, by wrapping the stage functions with timers (CPU and wall; no profiler: cProfile's
-per-call overhead inflates sympy-heavy stages such as the printout several-fold).
+per-call overhead inflates sympy-heavy stages several-fold), and whether that run imported sympy
+(with the library's cache warm it should not: the printout and model file are assembled from the
+cached per-term templates, ``lsindy_cas.symbolic.template``).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_cli.py --out results          # 5 runs / 3 loops
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_cli.py --out results --quick  # 3 runs / 1 loop
@@ -41,7 +43,7 @@ HERE = Path(__file__).resolve().parent
 FEATURES = "cos(theta),sin(theta),theta_dot,phi,phi_dot"
 STAGES = {    # stage -> (module, function or Class.method) timed in one `lsindy identify` run
     "load files": ("lsindy_cas.data.trajectory", "load_trajectories"),
-    "library (sympy terms)": ("lsindy_cas.commands._common", "library"),
+    "library (terms from the cache)": ("lsindy_cas.commands._common", "library"),
     "smoothing": ("lsindy_cas.data.smoothing", "smooth"),
     "energy balance (incl. CasADi functions)": ("lsindy_cas.identify.estimator",
                                                 "LagrangianSINDy._balance"),
@@ -49,8 +51,8 @@ STAGES = {    # stage -> (module, function or Class.method) timed in one `lsindy
     "support search + k": ("lsindy_cas.identify.selection", "select"),
     "errors in variables (re-weight, re-select)": ("lsindy_cas.identify.estimator",
                                                    "LagrangianSINDy._refine"),
-    "Legendre + Euler-Lagrange": ("lsindy_cas.identify.estimator",
-                                  "LagrangianSINDy._set_coefficients"),
+    "Legendre + mechanics (CasADi)": ("lsindy_cas.identify.estimator",
+                                      "LagrangianSINDy._set_coefficients"),
     "standard errors": ("lsindy_cas.identify.standard_errors", "coefficient_errors"),
     "diagnostics": ("lsindy_cas.identify.diagnostics", "diagnose"),
     "status (incl. simulation)": ("lsindy_cas.identify.estimator", "LagrangianSINDy._assess"),
@@ -178,6 +180,7 @@ def stage_times(csv: Path, out: Path) -> dict:
             setattr(h, attr, f)
     res = {stage: acc.get(stage, [0.0, 0.0])[:2] for stage in STAGES}
     res["total (in process, after imports)"] = total
+    res["sympy imported (1 = yes)"] = [float("sympy" in sys.modules)] * 2
     return res
 
 

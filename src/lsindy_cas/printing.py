@@ -16,11 +16,23 @@ Symbols print as a physicist writes them: ``theta1_dot`` → θ̇₁ (``\\dot{\\
 from __future__ import annotations
 
 import numpy as np
-import sympy as sp
-from sympy.printing.conventions import split_super_sub
+
 
 __all__ = ["simplify", "plain", "pretty", "latex", "describe", "symbol_latex", "decimal_place",
            "format_pm", "round_coef"]
+
+
+
+class _Sympy:
+    """``sp.<name>`` imported on first use: what ``lsindy identify`` prints (:func:`model_text`)
+    is assembled without sympy (~0.5 s to import); the renderers below need it."""
+
+    def __getattr__(self, name):
+        import sympy
+        return getattr(sympy, name)
+
+
+sp = _Sympy()
 
 DIGITS = 4
 # Most significant digits a coefficient is printed with when its standard error is tiny (exact
@@ -156,6 +168,7 @@ def format_pm(value: float, std: float, max_digits: int = MAX_DIGITS) -> str:
 
 # ---------------------------------------------------------------------- display symbols
 def _dotted(name: str, dots: str):
+    from sympy.printing.conventions import split_super_sub
     base, sups, subs = split_super_sub(name)
     out = base + dots
     if sups:
@@ -335,21 +348,27 @@ def _labelled(label: str, block: str) -> str:
 
 
 def model_text(self) -> str:
-    """What ``print(model)`` shows: H, L (R), the equations of motion, the coefficients ± errors."""
-    from .identify.steps import _fmt
+    """What ``print(model)`` shows: H, L (R), the equations of motion, the coefficients ± errors.
+
+    Each coefficient of H and L rounded to the place its standard error allows
+    (:func:`round_coef`), the equations from the rounded L, R as fitted; ``MAX_DIGITS``
+    significant digits at most.  Assembled from the library's templates (``model.texts``), so
+    no sympy is needed."""
     if not hasattr(self, "coef_"):
         return "LagrangianSINDy(unfitted)"
-    H, L, eoms = rounded(self)     # digits from the standard errors
-    lines = [f"H = {_fmt(H, MAX_DIGITS)}", f"L = {_fmt(L, MAX_DIGITS)}"]
-    if getattr(self, "rayleigh_", 0) != 0:
-        lines.append(f"R = {_fmt(self.rayleigh_, MAX_DIGITS)}   (friction forces -dR/dq_dot)")
+    t = self.texts(MAX_DIGITS, round_coef(self.coef_, getattr(self, "coef_std_", None)),
+                   round_coef(self.lagrangian_coef_, getattr(self, "lagrangian_coef_std_", None)))
+    lines = [f"H = {t['hamiltonian']}", f"L = {t['lagrangian']}"]
+    if self.has_friction_:
+        lines.append(f"R = {t['rayleigh']}   (friction forces -dR/dq_dot)")
     if getattr(self, "energy_scale_", "absolute") == "relative":
         lines.append(f"energy relative: H, L and R up to a constant factor "
                      f"(normalised: coefficient of {self.normalised_by_} = 1)")
     lines.append("equations of motion:")
-    lines += [f"  {_fmt(e.lhs, MAX_DIGITS)} = {_fmt(e.rhs, MAX_DIGITS)}" for e in eoms]
+    lines += [f"  {lhs} = {rhs}" for lhs, rhs in t["equations"]]
     table = coefficient_table(self)
-    from .identify.refine import current_refinement, refinement_text
-    if current_refinement(self) is not None:
-        table = refinement_text(self.refinement_) + ("\n" + table if table else "")
+    if getattr(self, "refinement_", None) is not None:     # refine.py imports sympy: only then
+        from .identify.refine import current_refinement, refinement_text
+        if current_refinement(self) is not None:
+            table = refinement_text(self.refinement_) + ("\n" + table if table else "")
     return "\n".join(lines + ([table] if table else []))

@@ -42,10 +42,16 @@ def library_arguments(parser):
 
 
 def numbers(text: str, what: str) -> list:
-    """``"pi/2, 0, -1e-3"`` -> floats (sympy syntax per entry, so ``pi/2`` works)."""
-    import sympy as sp
+    """``"pi/2, 0, -1e-3"`` -> floats (sympy syntax per entry, so ``pi/2`` works; plain numbers
+    are read without importing sympy)."""
     out = []
     for part in split(text):
+        try:
+            out.append(float(part))
+            continue
+        except ValueError:
+            pass
+        import sympy as sp
         try:
             out.append(float(sp.sympify(part)))
         except (sp.SympifyError, SyntaxError, TypeError, ValueError):

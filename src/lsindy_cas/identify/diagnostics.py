@@ -361,8 +361,7 @@ def _constant_force_text(lib, trap: ConstantForceTrap, S) -> str:
     for c, u in zip(lib.coords.names, trap.u):
         if u == 0:
             continue
-        j = lib.coords.names.index(c)
-        cyclic = not any(_depends(lib.exprs[k], lib.coords.q_sym[j]) for k in S)
+        cyclic = not any(c in lib.positions(k) for k in S)
         if c in trap.in_library:
             where = "cyclic (the energy does not depend on it)" if cyclic else "in the energy"
             left = " — the term was left out of the search" if lib.index(c) in trap.excluded else ""
@@ -374,10 +373,6 @@ def _constant_force_text(lib, trap: ConstantForceTrap, S) -> str:
                          "library term, but over a short run other terms can imitate it — vary "
                          "the input")
     return "; ".join(parts)
-
-
-def _depends(expr, sym) -> bool:
-    return sym in expr.free_symbols
 
 
 def _passive_report(d: Diagnostics, fit: FitRecord):

@@ -5,7 +5,6 @@ import copy
 from pathlib import Path
 
 import numpy as np
-import sympy as sp
 
 from .._validate import check_choice, check_int, check_real
 from .admissibility import Admissibility
@@ -13,9 +12,9 @@ from .balance import derivative_form, integral_form
 from .diagnostics import FitRecord, constant_force_trap, diagnose
 from .dissipation import dissipation_columns, dissipation_library, fold_scale, full_rayleigh, \
     norm_term, project, prune
-from ..mechanics.legendre import legendre
 from ..symbolic.library import Library
-from ..mechanics.euler_lagrange import EulerLagrange, simulate_ode
+from ..mechanics.euler_lagrange import simulate_ode
+from .fitted import FittedModel
 from .reweight import reselect
 from .selection import select
 from .status import assess
@@ -38,7 +37,7 @@ _REFINE_PASSES = 3
 _RESELECT_PASSES = 2
 
 
-class LagrangianSINDy:
+class LagrangianSINDy(FittedModel):
     """Lagrangian-SINDy (Chu & Hayashibe 2020): sparse energy, Legendre transform, Euler–Lagrange.
 
     Parameters
@@ -89,7 +88,7 @@ class LagrangianSINDy:
     coef_std_, lagrangian_coef_std_ : standard errors of ξ, ξ_L (jackknife, see std_method_)
     support_ : tuple of int
     n_terms_ : int                the k used (chosen or given)
-    hamiltonian_, lagrangian_ : sympy.Expr
+    hamiltonian_, lagrangian_ : sympy.Expr (built on first access; ``texts()``: the strings)
     actuated_ : list of str       coordinates that carried an applied force in the data
     search_ : SearchResult        ranking and diagnostics of the support search
     selection_ : Selection        every k tried and its held-out error
@@ -246,7 +245,7 @@ class LagrangianSINDy:
         """The one verdict on the fit (:func:`.status.assess`): ``status_``, ``status_reasons_``,
         ``ok_``, also in ``diagnostics_``.  Never raises: an undetermined fit is data."""
         d = self.diagnostics_
-        simulate = (drift_simulator(self.ode(), len(self.coords_)) if self.rayleigh_ == 0 else  # stiff
+        simulate = (drift_simulator(self.ode(), len(self.coords_)) if not self.has_friction_ else
                     lambda x0, t, u: simulate_ode(self.ode(), x0, t, u, len(self.coords_),  # noqa
                                                   rtol=1e-9, atol=1e-10)[0])
         d.status, d.status_reasons, d.checks = assess(self._record, d, simulate, self.coef_std_)
@@ -374,59 +373,6 @@ class LagrangianSINDy:
         """Refine the coefficients in place by prediction error (:func:`.refine.refine_model`)."""
         from .refine import refine_model
         return refine_model(self, trajectories, **options)
-
-    def _set_coefficients(self, coef, X=None, rayleigh=None):
-        lib = self.library
-        self.coords_ = list(lib.coords.names)
-        self.coef_ = np.asarray(coef, float)
-        self.support_ = tuple(int(j) for j in np.flatnonzero(self.coef_))
-        self.lagrangian_coef_ = legendre(lib, self.coef_, X)
-        self.hamiltonian_ = combine(lib, self.coef_)
-        self.lagrangian_ = combine(lib, self.lagrangian_coef_)
-        dlib = getattr(self, "_diss_lib", None)
-        self.rayleigh_coef_ = (np.zeros(0) if rayleigh is None or dlib is None
-                               else np.asarray(rayleigh, float))
-        self.rayleigh_ = (combine(dlib, self.rayleigh_coef_) if self.rayleigh_coef_.size
-                          else sp.Integer(0))
-        self._mechanics = EulerLagrange(lib.coords, self.lagrangian_,
-                                        rayleigh=self.rayleigh_ if self.rayleigh_ != 0 else None)
-
-    def _set_errors(self, errors):
-        """Standard errors of H's and L's coefficients (:mod:`.standard_errors`)."""
-        self.coef_std_ = np.asarray(errors.hamiltonian, float)
-        self.lagrangian_coef_std_ = np.asarray(errors.lagrangian, float)
-        self.std_method_ = errors.method
-
-    def _check_fitted(self):
-        if not hasattr(self, "coef_"):
-            raise ValueError("this LagrangianSINDy is not fitted yet; call fit() or load()")
-
-    # ------------------------------------------------------------------ results
-    def terms(self, which: str = "hamiltonian") -> dict:
-        """``{term name: coefficient}`` of the identified H or L."""
-        self._check_fitted()
-        if which == "rayleigh":
-            if getattr(self, "_diss_lib", None) is None:
-                return {}
-            return {self._diss_lib.names[j]: float(c) for j, c in enumerate(self.rayleigh_coef_)
-                    if c != 0}
-        coef = self.coef_ if which == "hamiltonian" else self.lagrangian_coef_
-        return {self.library.names[j]: float(coef[j]) for j in np.flatnonzero(coef)}
-
-    def ode(self):
-        """``casadi.Function('ode', [x, u], [xdot])``: x = [q, q̇], u = Q (generalized forces)."""
-        self._check_fitted()
-        return self._mechanics.ode()
-
-    def equations_of_motion(self) -> list:
-        """Sympy ``Eq(M q̈, F)`` rows over ``<q>_ddot``, ``<q>``, ``<q>_dot`` and ``Q_<q>``."""
-        self._check_fitted()
-        return self._mechanics.equations()
-
-    def simulate(self, x0, t, u=None) -> np.ndarray:
-        """Integrate the identified equations of motion; returns states (len(t), 2n)."""
-        self._check_fitted()
-        return simulate_ode(self.ode(), x0, t, u, len(self.coords_))[0]
 
     def __str__(self) -> str:
         from ..printing import model_text

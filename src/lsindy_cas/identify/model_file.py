@@ -23,13 +23,14 @@ def model_to_dict(model) -> dict:
     """The DESIGN.md model-file dictionary of a fitted ``LagrangianSINDy``."""
     model._check_fitted()
     prior = model.prior
+    text = model.texts(15)         # sympy syntax, 15 significant digits, built without sympy
     out = {
         "coords": model.coords_,
-        "hamiltonian": str(model.hamiltonian_),
-        "lagrangian": str(model.lagrangian_),
+        "hamiltonian": text["hamiltonian"],
+        "lagrangian": text["lagrangian"],
         "hamiltonian_terms": model.terms("hamiltonian"),
         "lagrangian_terms": model.terms("lagrangian"),
-        "equations_of_motion": [f"{e.lhs} = {e.rhs}" for e in model.equations_of_motion()],
+        "equations_of_motion": [f"{lhs} = {rhs}" for lhs, rhs in text["equations"]],
         "actuated": list(getattr(model, "actuated_", [])),
         "library": model.library.to_dict(),
         "n_terms": int(len(model.support_)),
@@ -51,12 +52,13 @@ def model_to_dict(model) -> dict:
     if getattr(model, "normalised_by_", None):
         out["normalised_by"] = model.normalised_by_
     if getattr(model, "_diss_lib", None) is not None:      # friction: R and its candidate terms
-        out["rayleigh"] = str(model.rayleigh_)
+        out["rayleigh"] = text["rayleigh"]
         out["rayleigh_terms"] = model.terms("rayleigh")
         out["dissipation_library"] = model._diss_lib.to_dict()
-    from .refine import current_refinement
-    if current_refinement(model) is not None:      # prediction-error refinement record
-        out["refinement"] = model.refinement_
+    if getattr(model, "refinement_", None) is not None:    # refine.py imports sympy: only then
+        from .refine import current_refinement
+        if current_refinement(model) is not None:  # prediction-error refinement record
+            out["refinement"] = model.refinement_
     res = getattr(model, "search_", None)
     if res is not None:            # how the support was found, and whether it is proven best
         out["search"] = {"method": res.method, "proven": bool(res.proven), "gap": float(res.gap),

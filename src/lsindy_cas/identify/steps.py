@@ -3,9 +3,9 @@ estimator short: input checks, the corrected coefficients, sympy assembly and ro
 from __future__ import annotations
 
 import numpy as np
-import sympy as sp
 
 from ..data.trajectory import Trajectory
+from ..mechanics.linear import expression
 from ..symbolic.library import Library
 from .uncertainty import corrected_coef, corrected_null, noise_gram
 
@@ -39,13 +39,14 @@ def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
     return coef
 
 
-def combine(lib: Library, coef) -> sp.Expr:
+def combine(lib: Library, coef):
     """Σ_j coef_j θ_j over the non-zero coefficients (sympy)."""
-    return sp.Add(*[sp.Float(float(coef[j]), 15) * lib.exprs[j] for j in np.flatnonzero(coef)])
+    return expression(lib, coef)
 
 
 def _fmt(expr, digits: int = 4) -> str:
     """Readable form with coefficients rounded to ``digits`` significant digits."""
+    import sympy as sp
     return str(sp.N(expr, digits))
 
 

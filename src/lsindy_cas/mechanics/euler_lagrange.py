@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-import sympy as sp
 
 from ..symbolic.coords import Coordinates
 from .rayleigh import COULOMB_EPS, check_velocity_only, friction_forces, smooth_sign
@@ -39,6 +38,7 @@ class EulerLagrange:
     """
 
     def __init__(self, coords, lagrangian, rayleigh=None, coulomb_eps: float = COULOMB_EPS):
+        import sympy as sp
         self.coords = coords if isinstance(coords, Coordinates) else Coordinates(coords)
         self.lagrangian = self.coords.parse(lagrangian, what="Lagrangian")
         c = self.coords
@@ -72,8 +72,9 @@ class EulerLagrange:
         qdd = ca.solve(self.M_sx, self.F_sx)
         return ca.Function("ode", [c.x, c.Q], [ca.vertcat(c.qd, qdd)], ["x", "u"], ["xdot"])
 
-    def sympy_equations(self) -> tuple[sp.Matrix, sp.Matrix]:
+    def sympy_equations(self) -> tuple:
         """Return ``(M, F)`` as sympy matrices so that ``M q̈ = F`` (with ``Q_<q>`` symbols)."""
+        import sympy as sp
         c = self.coords
         L = self.lagrangian
         qd, q = sp.Matrix(c.qd_sym), sp.Matrix(c.q_sym)
@@ -91,6 +92,7 @@ class EulerLagrange:
         return list(self._equations)
 
     def _derive_equations(self) -> list:
+        import sympy as sp
         M, F = self.sympy_equations()
         qdd = sp.Matrix([sp.Symbol(n + "_ddot", real=True) for n in self.coords.names])
         lhs = M * qdd

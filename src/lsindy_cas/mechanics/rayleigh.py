@@ -16,8 +16,6 @@ smoothed model creeps where a real rig would stick.
 """
 from __future__ import annotations
 
-import sympy as sp
-
 from ..symbolic.coords import Coordinates
 
 __all__ = ["COULOMB_EPS", "check_velocity_only", "friction_forces", "smooth_sign"]
@@ -27,6 +25,7 @@ COULOMB_EPS = 1e-2
 
 def check_velocity_only(coords: Coordinates, exprs, what: str = "dissipation term") -> None:
     """Raise ``ValueError`` if an expression of R depends on a position (R = R(q̇) only)."""
+    import sympy as sp
     qs = set(coords.q_sym)
     for e in exprs:
         bad = sorted(str(s) for s in sp.sympify(e).free_symbols & qs)
@@ -39,10 +38,12 @@ def check_velocity_only(coords: Coordinates, exprs, what: str = "dissipation ter
 
 def friction_forces(coords: Coordinates, rayleigh) -> list:
     """Exact generalized friction forces ∂R/∂q̇ (sympy, one per coordinate; Coulomb → sign)."""
+    import sympy as sp
     R = sp.sympify(rayleigh)
     return [sp.diff(R, v) for v in coords.qd_sym]
 
 
 def smooth_sign(expr, eps: float = COULOMB_EPS):
     """``expr`` with every ``sign(a)`` replaced by ``tanh(a/eps)`` (the ODE's Coulomb force)."""
+    import sympy as sp
     return sp.sympify(expr).replace(sp.sign, lambda a: sp.tanh(a / eps))

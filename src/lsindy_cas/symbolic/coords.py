@@ -4,6 +4,9 @@ A coordinate named ``theta`` gives the position symbol ``theta`` and the velocit
 ``theta_dot``; an applied generalized force on it is written ``Q_theta``.  Expressions that people
 write (features, prior terms, saved models) are sympy strings over these names; everything numeric
 is CasADi SX built from the same sympy tree, so a term's name and its expression cannot drift apart.
+
+sympy is imported only when a sympy symbol or expression is asked for (``q_sym``, ``parse``,
+``to_casadi``): the numeric path (``q``, ``qd``, ``Q``, names) does without it (~0.5 s to import).
 """
 from __future__ import annotations
 
@@ -13,7 +16,6 @@ from tokenize import TokenError
 from dataclasses import dataclass, field
 
 import casadi as ca
-import sympy as sp
 
 __all__ = ["Coordinates", "sympy_to_casadi"]
 
@@ -43,14 +45,24 @@ def _check_names(names) -> list[str]:
     return names
 
 
-_SX_FUNCS = {
-    sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.exp: ca.exp, sp.log: ca.log,
-    sp.sinh: ca.sinh, sp.cosh: ca.cosh, sp.tanh: ca.tanh, sp.asin: ca.asin, sp.acos: ca.acos,
-    sp.atan: ca.atan, sp.Abs: ca.fabs, sp.sign: ca.sign,
-}
+_SX_NAMES = {"sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "exp": ca.exp, "log": ca.log,
+              "sinh": ca.sinh, "cosh": ca.cosh, "tanh": ca.tanh, "asin": ca.asin, "acos": ca.acos,
+              "atan": ca.atan, "Abs": ca.fabs, "sign": ca.sign}
 
 
-def sympy_to_casadi(expr: sp.Expr, table: dict) -> ca.SX:
+def _sx_funcs() -> dict:
+    """sympy function class -> CasADi function (sympy imported on first use)."""
+    global _SX_FUNCS_CACHE
+    if _SX_FUNCS_CACHE is None:
+        import sympy as sp
+        _SX_FUNCS_CACHE = {getattr(sp, name): f for name, f in _SX_NAMES.items()}
+    return _SX_FUNCS_CACHE
+
+
+_SX_FUNCS_CACHE = None
+
+
+def sympy_to_casadi(expr, table: dict) -> ca.SX:
     """Convert a sympy expression to CasADi SX.
 
     Parameters
@@ -65,6 +77,7 @@ def sympy_to_casadi(expr: sp.Expr, table: dict) -> ca.SX:
     casadi.SX
         A 1x1 SX expression.
     """
+    import sympy as sp
     if expr.is_Symbol:
         if expr not in table:
             raise ValueError(f"unknown symbol {expr} in expression")
@@ -92,7 +105,7 @@ def sympy_to_casadi(expr: sp.Expr, table: dict) -> ca.SX:
         if exp_ == sp.Rational(1, 2):
             return ca.sqrt(b)
         return b ** sympy_to_casadi(exp_, table)
-    fn = _SX_FUNCS.get(expr.func)
+    fn = _sx_funcs().get(expr.func)
     if fn is not None:
         return fn(sympy_to_casadi(expr.args[0], table))
     raise ValueError(f"cannot convert {expr.func.__name__} in {expr} to CasADi")
@@ -125,9 +138,29 @@ class Coordinates:
         self.q = ca.vertcat(*[ca.SX.sym(n) for n in self.names])
         self.qd = ca.vertcat(*[ca.SX.sym(n + "_dot") for n in self.names])
         self.Q = ca.vertcat(*[ca.SX.sym("Q_" + n) for n in self.names])
-        self.q_sym = [sp.Symbol(n, real=True) for n in self.names]
-        self.qd_sym = [sp.Symbol(n + "_dot", real=True) for n in self.names]
-        self.Q_sym = [sp.Symbol("Q_" + n, real=True) for n in self.names]
+
+    def _symbols(self, fmt: str) -> list:
+        """Real sympy symbols named ``fmt.format(name)``, made once (sympy imported here)."""
+        cache = self.__dict__.setdefault("_sym", {})
+        if fmt not in cache:
+            import sympy as sp
+            cache[fmt] = [sp.Symbol(fmt.format(n), real=True) for n in self.names]
+        return cache[fmt]
+
+    @property
+    def q_sym(self) -> list:
+        """sympy symbols of the positions (real)."""
+        return self._symbols("{}")
+
+    @property
+    def qd_sym(self) -> list:
+        """sympy symbols of the velocities ``<q>_dot`` (real)."""
+        return self._symbols("{}_dot")
+
+    @property
+    def Q_sym(self) -> list:
+        """sympy symbols of the applied forces ``Q_<q>`` (real)."""
+        return self._symbols("Q_{}")
 
     @property
     def n(self) -> int:
@@ -148,11 +181,12 @@ class Coordinates:
         syms = self.q_sym + self.qd_sym + (self.Q_sym if with_forces else [])
         return {str(s): s for s in syms}
 
-    def parse(self, text, what: str = "expression", with_forces: bool = False) -> sp.Expr:
+    def parse(self, text, what: str = "expression", with_forces: bool = False):
         """Parse a string over the coordinate names into a sympy expression.
 
         Raises ``ValueError`` naming ``what`` if the text is not valid or uses an unknown name.
         """
+        import sympy as sp
         if isinstance(text, sp.Expr):
             expr = text
         else:
@@ -172,13 +206,15 @@ class Coordinates:
             known = ", ".join(self.state_names)
             raise ValueError(f"{what} {text!r} uses unknown name(s) {', '.join(unknown)}; "
                              f"known coordinates: {known}")
-        if expr.atoms(sp.Function) and any(f.func not in _SX_FUNCS for f in expr.atoms(sp.Function)):
-            bad = sorted({f.func.__name__ for f in expr.atoms(sp.Function) if f.func not in _SX_FUNCS})
+        funcs = _sx_funcs()
+        if expr.atoms(sp.Function) and any(f.func not in funcs for f in expr.atoms(sp.Function)):
+            bad = sorted({f.func.__name__ for f in expr.atoms(sp.Function) if f.func not in funcs})
             raise ValueError(f"{what} {text!r} uses unsupported function(s) {', '.join(bad)}")
         return expr
 
-    def to_casadi(self, expr: sp.Expr, with_forces: bool = False) -> ca.SX:
+    def to_casadi(self, expr, with_forces: bool = False) -> ca.SX:
         """Convert a sympy expression over these coordinates to SX over ``q``, ``qd`` (and ``Q``)."""
+        import sympy as sp
         table = dict(zip(self.q_sym, ca.vertsplit(self.q)))
         table.update(zip(self.qd_sym, ca.vertsplit(self.qd)))
         if with_forces:

@@ -7,8 +7,12 @@ forming a polynomial library's products in sympy about as long again; both depen
 library's definition, not on data, so a library seen before loads them instead (CasADi's own
 serialisation; the names as text, each term parsed from its name only when it is used).
 
+The same store keeps the per-term templates of :mod:`.template` (velocity degrees, positions,
+expanded Euler-Lagrange rows) as JSON records, so that a library seen before needs no sympy at all.
+
 Safety: the key hashes everything the Functions depend on — the cache format, the versions of
-lsindy_cas, CasADi and sympy, the coordinate names and every term's name (a name is the term's
+lsindy_cas, CasADi and sympy (sympy's read from its ``release.py``, without importing it), the
+coordinate names and every term's name (a name is the term's
 sympy string, which determines the expression); a file is written whole or not at all
 (:func:`lsindy_cas._io.atomic_write`); and the cache never breaks a run: a missing, unreadable,
 corrupt or mismatched file is rebuilt, and a read-only, full or missing cache directory only means
@@ -20,9 +24,11 @@ terms) and may be deleted at any time.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
+import re
 from pathlib import Path
 
 import casadi as ca
@@ -43,11 +49,30 @@ def cache_dir() -> Path | None:
 
 
 def _key(*parts) -> str:
-    import sympy
-
     from .._version import __version__
-    text = json.dumps([FORMAT, __version__, ca.__version__, sympy.__version__, *parts])
+    text = json.dumps([FORMAT, __version__, ca.__version__, sympy_version(), *parts])
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+_RELEASE = re.compile(r"""^__version__\s*=\s*["']([^"']+)["']""", re.M)
+
+
+@functools.lru_cache(maxsize=None)
+def sympy_version() -> str:
+    """The installed sympy's version, without importing sympy (~0.5 s): from the module when it
+    is already imported, else from its ``release.py`` (importlib.metadata itself costs ~0.1 s),
+    else from the package metadata."""
+    import sys
+    if "sympy" in sys.modules:
+        return str(sys.modules["sympy"].__version__)
+    try:
+        import importlib.util
+        spec = importlib.util.find_spec("sympy")
+        text = (Path(spec.origin).parent / "release.py").read_text()
+        return _RELEASE.search(text).group(1)
+    except Exception:              # noqa: BLE001 - a layout without release.py: ask the metadata
+        from importlib.metadata import version
+        return version("sympy")
 
 
 def read(kind: str, parts: list) -> dict | None:

@@ -4,6 +4,9 @@ Each term is one sympy expression (what a person reads and what a saved model st
 expression built from it (what is differentiated and evaluated).  Derivatives are exact:
 Γ = ∇Θ · ẋ is a Jacobian-vector product, ∂Θ/∂q̇ and ∂²Θ/∂q̇² are CasADi Jacobians/Hessians, and every
 quantity is evaluated for all samples at once through ``casadi.Function.map``.
+
+sympy is imported only to parse or derive terms: a polynomial library seen before (names, CasADi
+Functions and per-term facts in the disk cache, :mod:`.fcache`, :mod:`.template`) does without it.
 """
 from __future__ import annotations
 
@@ -13,7 +16,6 @@ from functools import cached_property
 
 import casadi as ca
 import numpy as np
-import sympy as sp
 
 from .._validate import check_int
 from . import fcache
@@ -24,8 +26,9 @@ _MAP = 512        # samples per evaluation of the mapped library functions
 __all__ = ["Library"]
 
 
-def _expanded(expr: sp.Expr) -> sp.Expr:
+def _expanded(expr):
     """Expanded form, so that e.g. x*(x + y) and x**2 + x*y are recognised as one term."""
+    import sympy as sp
     return sp.expand(expr)
 
 
@@ -45,6 +48,7 @@ class Library:
     """
 
     def __init__(self, coords, terms):
+        import sympy as sp
         self.coords = coords if isinstance(coords, Coordinates) else Coordinates(coords)
         if isinstance(terms, (str, sp.Expr)):
             terms = [terms]
@@ -90,6 +94,7 @@ class Library:
                 return cls._from_names(c, cached["names"], cached["features"], int(degree))
             except (KeyError, TypeError, ValueError):
                 pass                                   # a damaged record: build it again
+        import sympy as sp
         feats = [c.parse(f, what=f"feature {f!r}") for f in features]
         if not feats:
             raise ValueError("features must list at least one expression")
@@ -152,6 +157,13 @@ class Library:
 
     def index(self, term, what: str = "term") -> int:
         """Position of ``term`` (string or sympy) in the library; ``ValueError`` if absent."""
+        if isinstance(term, str):          # a term's own name, or a plain coordinate/velocity name:
+            j = self._name_index.get(term.strip())        # no parsing (nor sympy) needed
+            if j is not None:
+                return j
+            if term.strip() in self.coords.state_names:   # a symbol that is no term's name
+                raise ValueError(f"{what} {term!r} is not in the library ({len(self)} terms; "
+                                 f"e.g. {', '.join(self.names[:4])}, ...)")
         e = self.coords.parse(term, what=what)
         j = self._name_index.get(str(e))       # by name first: parses no other term
         if j is not None and self.exprs[j] == e:
@@ -170,6 +182,7 @@ class Library:
         ``ValueError`` if ``expr`` is not a linear combination of library terms (constants are
         dropped: energy is defined up to one).
         """
+        import sympy as sp
         e = sp.expand(sp.expand_trig(self.coords.parse(expr, what=what)))
         xi = np.zeros(len(self))
         for term, c in e.as_coefficients_dict().items():
@@ -197,18 +210,23 @@ class Library:
         """Θ as an SX row vector (1, p)."""
         return ca.horzcat(*[self.coords.to_casadi(e) for e in self.exprs])
 
+    @cached_property
+    def template(self):
+        """The per-term facts and expanded Euler-Lagrange rows (:class:`.template.Template`)."""
+        from .template import Template
+        return Template(self)
+
+    def sx_terms(self) -> ca.SX:
+        """Θ as SX (p, 1) over ``coords.x`` from the (cached) Θ Function: no sympy needed."""
+        return self._functions["theta"](self.coords.x)
+
     def velocity_degree(self, j: int) -> int | None:
         """Degree of homogeneity of term ``j`` in the velocities, or ``None`` if not homogeneous."""
-        cache = self.__dict__.setdefault("_vdeg", {})
-        if j not in cache:
-            try:
-                poly = sp.Poly(self.exprs[j], *self.coords.qd_sym)
-            except sp.PolynomialError:
-                cache[j] = None
-            else:
-                degs = {sum(m) for m in poly.monoms()}
-                cache[j] = degs.pop() if len(degs) == 1 else None
-        return cache[j]
+        return self.template.degrees[j]
+
+    def positions(self, j: int) -> list:
+        """The coordinates whose position term ``j`` depends on (e.g. ``["theta"]``)."""
+        return list(self.template.positions[j])
 
     # ------------------------------------------------------------------ numeric
     @cached_property
