@@ -60,7 +60,9 @@ def test_subtree_tasks_give_the_single_process_answer(client, passive, seed):
 def test_a_shared_incumbent_prunes_in_the_workers(client):
     """One task on the whole tree, once with the shared value unset (inf) and once holding the
     optimum: with it the task expands fewer nodes and accepts nothing (no support beats the
-    optimum by more than the resolution); at -inf (the driver's stop) it prunes everything."""
+    optimum by more than the resolution); at -inf (the driver's stop) it expands nothing and hands
+    every node back open — pruning them would make a tree stopped by the time limit look
+    exhausted, i.e. proven (the bug this guards: proven = True with gap 0.08)."""
     import uuid
     from distributed import Variable
     from lsindy_cas.identify.bnb import _Search
@@ -80,7 +82,8 @@ def test_a_shared_incumbent_prunes_in_the_workers(client):
     assert not free["open"] and free["winner"].support == one.support
     assert not shared["open"] and shared["winner"] is None
     assert shared["counts"][2] < free["counts"][2]
-    assert stop["counts"][2] == 0 and not stop["open"] and stop["lower_pruned"] == 0.0
+    assert stop["counts"][2] == 0 and len(stop["open"]) == len(entries)
+    assert stop["lower_pruned"] == np.inf and stop["winner"] is None
 
 
 @pytest.mark.parametrize("screen", [False, True], ids=["library order", "screening order"])

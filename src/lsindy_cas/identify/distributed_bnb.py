@@ -105,11 +105,16 @@ def _run_task(templates, which, entries, incumbent, var_name, seconds):
     var = Variable(var_name)
     t0 = time.monotonic()
     end = t0 + seconds
+    state = "open"
     while True:
         try:
             shared = float(var.get(timeout=1))
         except Exception:                        # noqa: BLE001 - a slow scheduler only prunes less
             shared = np.inf
+        if shared == -np.inf:
+            # the driver's stop signal (proven elsewhere, time limit, Ctrl-C), not an incumbent:
+            # pruning with it would empty the heap and make a stopped tree look exhausted
+            break
         if s.winner is not None and s.winner.score < shared:
             var.set(float(s.winner.score))       # publish (again, if another task overwrote it)
         s.incumbent = min(s.incumbent, shared)
