@@ -57,6 +57,12 @@ CONFIGS = {
     "sqp+continue": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                       "cold": "warm", "recovery": "continue"},
                      "SQP cold start, failed iterates continued, IPOPT after 3 failures"),
+    "sqp+ipopt-recovery": ({"solver": "sqp", "relaxation": "continuous",
+                            "rounding": "lookahead", "cold": "ipopt", "recovery": "ipopt"},
+                           "cold starts and recoveries by IPOPT (the default before issue 16 "
+                           "part 3; now fatrop)"),
+    "sqp+jit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                 "jit": True}, "default with the NLP functions compiled (gcc, cached)"),
     "sqp+continuous+lookahead": ({"solver": "sqp", "relaxation": "continuous",
                                   "rounding": "lookahead", "balance": False},
                                  "lookahead everywhere (no balancer)"),
@@ -121,6 +127,7 @@ def _metrics(ctrl, options, eps, scenario, build):
         step_ms={"median": s["step_ms_median"], "p99": s["step_ms_p99"]},
         step_cpu_ms={"median": s["step_cpu_ms_median"], "p99": s["step_cpu_ms_p99"]},
         solver={"by_kind": s["by_kind"], "statuses": s["statuses"]},
+        slow_steps={"wall": s["slow_steps"], "cpu": s["slow_steps_cpu"]},
         iterations_median=s["iterations_median"], build_s=round(build, 3),
         failed_starts=[e.x0.round(4).tolist() for e in eps if not e.success])
 
@@ -171,6 +178,9 @@ def main(argv=None):
             print(table(rows[-1:]).splitlines()[-1], flush=True)
     print()
     print(table(rows))
+    print("\nsteps over 20 ms by kind (wall clock | CPU time):")
+    for name, r in rows:
+        print(f"  {name} ({r['scenario']}): {r['slow_steps']['wall']} | {r['slow_steps']['cpu']}")
     report = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                           "loadavg_before": load_before, "loadavg_after": os.getloadavg()},
               "episodes": args.episodes, "seed": args.seed,
