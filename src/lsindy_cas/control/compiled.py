@@ -14,14 +14,19 @@ and options loads in about a second.
 
 The folder is that of :mod:`lsindy_cas.symbolic.fcache` (``$LSINDY_CACHE_DIR``; ``off`` disables
 the cache, and then every build compiles).  A missing, unreadable or corrupt file is rebuilt, and
-an unwritable folder only means nothing is saved.
+an unwritable folder only means nothing is saved.  Files are large (about 40 MB for the
+swing-up's three: the SQP's Hessian and Jacobian, fatrop with its NLP) and may be deleted at
+any time.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
+import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import casadi as ca
@@ -31,7 +36,7 @@ from ..symbolic.fcache import cache_dir
 
 __all__ = ["check_compiler", "compiled_function", "compiled_nlpsol"]
 
-FORMAT = 1  # bump when what is compiled, or how, changes
+FORMAT = 3  # bump when what is compiled, or how, changes
 FLAGS = ["-O1"]  # -O0 compiled in 38 s but ran at 0.9 ms per fatrop iteration, -O1: 57 s, 0.36
 
 
@@ -46,6 +51,19 @@ def check_compiler():
 def _jit_options():
     return {"jit": True, "compiler": "shell", "jit_serialize": "embed",
             "jit_options": {"flags": list(FLAGS), "verbose": False}}
+
+
+@contextlib.contextmanager
+def _scratch():
+    """Run inside a new folder under the system's temporary one: CasADi's JIT writes its C
+    source and library into the current directory (and removes them when the Function is
+    freed, leaving the empty folder)."""
+    cwd = os.getcwd()
+    os.chdir(tempfile.mkdtemp(prefix="lsindy_jit_"))
+    try:
+        yield
+    finally:
+        os.chdir(cwd)
 
 
 def _path(kind, parts):
@@ -65,7 +83,8 @@ def _load_or_build(path, build):
             return ca.Function.load(str(path))
         except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
             pass
-    f = build()
+    with _scratch():
+        f = build()
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
