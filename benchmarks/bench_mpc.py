@@ -10,8 +10,13 @@ noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
 
     python benchmarks/bench_mpc.py                 # everything (about 8 minutes on 2 cores)
     python benchmarks/bench_mpc.py --episodes 3    # quick look
-    python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+continue \
-        --no-robustness --out /tmp/rt             # the real-time comparison (issue 16)
+    python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+jit,\
+sqp+ipopt-recovery --no-robustness --out /tmp/rt  # the real-time comparison (issue 16)
+
+``sqp+jit`` compiles the NLP's functions with gcc the first time (a minute or two; cached in
+``$LSINDY_CACHE_DIR``, see ``lsindy_cas/control/compiled.py``): run it once before timing, or
+read its ``build_s``.  ``slow_steps`` in the JSON counts the steps over 20 ms by what they ran
+(cold start, recovery, warm SQP, balancer): the p99 of 4,000 steps is the 40th slowest.
 
 The configurations given run interleaved (start ``i`` of each before start ``i + 1`` of any), so
 that a change of the machine's load affects them alike.
