@@ -10,8 +10,13 @@ noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
 
     python benchmarks/bench_mpc.py                 # everything (about 8 minutes on 2 cores)
     python benchmarks/bench_mpc.py --episodes 3    # quick look
-    python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+continue \
-        --no-robustness --out /tmp/rt             # the real-time comparison (issue 16)
+    python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+jit,\
+sqp+ipopt-recovery --no-robustness --out /tmp/rt  # the real-time comparison (issue 16)
+
+``sqp+jit`` compiles the NLP's functions with gcc the first time (a minute or two; cached in
+``$LSINDY_CACHE_DIR``, see ``lsindy_cas/control/compiled.py``): run it once before timing, or
+read its ``build_s``.  ``slow_steps`` in the JSON counts the steps over 20 ms by what they ran
+(cold start, recovery, warm SQP, balancer): the p99 of 4,000 steps is the 40th slowest.
 
 The configurations given run interleaved (start ``i`` of each before start ``i + 1`` of any), so
 that a change of the machine's load affects them alike.
@@ -57,6 +62,12 @@ CONFIGS = {
     "sqp+continue": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                       "cold": "warm", "recovery": "continue"},
                      "SQP cold start, failed iterates continued, IPOPT after 3 failures"),
+    "sqp+ipopt-recovery": ({"solver": "sqp", "relaxation": "continuous",
+                            "rounding": "lookahead", "cold": "ipopt", "recovery": "ipopt"},
+                           "cold starts and recoveries by IPOPT (the default before issue 16 "
+                           "part 3; now fatrop)"),
+    "sqp+jit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                 "jit": True}, "default with the NLP functions compiled (gcc, cached)"),
     "sqp+continuous+lookahead": ({"solver": "sqp", "relaxation": "continuous",
                                   "rounding": "lookahead", "balance": False},
                                  "lookahead everywhere (no balancer)"),
@@ -121,6 +132,7 @@ def _metrics(ctrl, options, eps, scenario, build):
         step_ms={"median": s["step_ms_median"], "p99": s["step_ms_p99"]},
         step_cpu_ms={"median": s["step_cpu_ms_median"], "p99": s["step_cpu_ms_p99"]},
         solver={"by_kind": s["by_kind"], "statuses": s["statuses"]},
+        slow_steps={"wall": s["slow_steps"], "cpu": s["slow_steps_cpu"]},
         iterations_median=s["iterations_median"], build_s=round(build, 3),
         failed_starts=[e.x0.round(4).tolist() for e in eps if not e.success])
 
@@ -171,6 +183,9 @@ def main(argv=None):
             print(table(rows[-1:]).splitlines()[-1], flush=True)
     print()
     print(table(rows))
+    print("\nsteps over 20 ms by kind (wall clock | CPU time):")
+    for name, r in rows:
+        print(f"  {name} ({r['scenario']}): {r['slow_steps']['wall']} | {r['slow_steps']['cpu']}")
     report = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                           "loadavg_before": load_before, "loadavg_after": os.getloadavg()},
               "episodes": args.episodes, "seed": args.seed,

@@ -126,7 +126,7 @@ def test_find_upright_from_the_model_for_either_angle_convention(model):
     ({"solver": "cplex"}, ValueError, "solver"),
     ({"rounding": "ceil"}, ValueError, "rounding"),
     ({"recovery": "restart"}, ValueError, "recovery"),
-    ({"cold": "fatrop"}, ValueError, "cold"),
+    ({"cold": "snopt"}, ValueError, "cold"),
     ({"weights": {"angel": 1.0}}, ValueError, "weights"),
 ])
 def test_bad_arguments_raise_naming_the_argument(model, kwargs, exc, word):

@@ -10,9 +10,10 @@ default), by sum-up rounding with the rounding error carried across steps, or by
 (:mod:`lsindy_cas.control.rounding`); where a subclass's own rule decides (the balancer of
 :class:`~lsindy_cas.mpc.SwingUpMPC`), the step only shifts the plan.  A failed or
 non-converged solve falls back to the shifted previous plan and is counted in
-:attr:`DiscreteInputMPC.stats`; the next step re-solves with IPOPT (or, with
-``recovery="continue"``, continues the SQP from the failed iterate, so that a step needs at most
-``max_iter`` SQP iterations, with IPOPT only after ``recover_after`` failures in a row).
+:attr:`DiscreteInputMPC.stats`; the next step re-solves with an interior-point method, fatrop
+(structure-exploiting) or IPOPT (or, with ``recovery="continue"``, continues the SQP from the
+failed iterate, so that a step needs at most ``max_iter`` SQP iterations, with IPOPT only after
+``recover_after`` failures in a row).
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from .correction import InputGainCorrection
 from .lookahead import build_lookahead
 from .ocp import OCP
 from .rounding import ROUNDINGS, weights_from_value
-from .shooting import SOLVERS, MultipleShootingNLP
+from .shooting import (ROBUST_SOLVERS, SOLVERS, MultipleShootingNLP, check_solver_available,
+                       default_robust_solver)
 from .stats import MPCStats
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "wrap_angle"]
@@ -80,9 +82,9 @@ class DiscreteInputMPC:
     depth : int
         Lookahead depth in control intervals (``n_levels**depth`` sequences).
     max_iter : int
-        Iteration cap per SQP solve (warm-started, and by default the cold first one).
-        Recovery solves (see ``recover_after``), and cold ones with ``cold="ipopt"``, use
-        IPOPT with ``max(10 * max_iter, 300)`` iterations.
+        Iteration cap per warm-started SQP solve.  Recovery solves (see ``recover_after``)
+        and cold ones (unless ``cold="warm"``) run fatrop or IPOPT with
+        ``max(10 * max_iter, 300)`` iterations.
     tol : float
         Solver tolerance.
     accept_inexact : bool
@@ -90,30 +92,33 @@ class DiscreteInputMPC:
         (counted in ``stats.n_inexact``); otherwise such a solve is a failure (fallback).
     inexact_tol : float
         Constraint violation (shooting defects in state units, bounds) up to which a capped
-        solve's iterate is applied.  A larger value trades recovery solves (IPOPT, the
-        slow ones) for applying less consistent plans; the strict default keeps the
+        solve's iterate is applied.  A larger value trades recovery solves (the slow ones) for applying less consistent plans; the strict default keeps the
         plans nearly dynamically consistent (the trade-off is measured in the README).
     recover_after : int, optional
-        After this many failed solves in a row the next solve is a recovery solve (IPOPT)
-        from the shifted plan; by default 1 with ``recovery="ipopt"``, 3 with
-        ``"continue"``.
-    recovery : {"ipopt", "continue"}
+        After this many failed solves in a row the next solve is a recovery solve (fatrop or
+        IPOPT) from the shifted plan; by default 1 with ``recovery="fatrop"`` or
+        ``"ipopt"``, 3 with ``"continue"``.
+    recovery : {"fatrop", "ipopt", "continue"}, optional
         What the solves after a failure start from: ``"continue"`` warm-starts the
         next SQP solve from the failed iterate itself, shifted, so that the SQP carries on
         converging over the following steps (each at most ``max_iter`` SQP iterations),
         and an IPOPT recovery solve runs only after ``recover_after`` failures in a row,
-        from the last applied plan; ``"ipopt"`` (default) discards the failed iterate and
-        re-solves with IPOPT from the shifted previous plan.  ``"continue"`` halves the step
+        from the last applied plan; ``"fatrop"`` and ``"ipopt"`` discard the failed iterate and
+        re-solve with that interior-point method from the shifted previous plan.  The default
+        is fatrop when CasADi has it (its wheels do), else IPOPT: fatrop exploits the stage
+        structure and reaches IPOPT's optimum in about a third of the time (issue 16:
+        recovery solves median 53 -> 17 ms CPU on a loaded machine, the same swing-ups).
+        ``"continue"`` halves the step
         time's p99 (no IPOPT after most failures) but applies stale plans more often: it
         loses starts with the plant 10 % off that ``"ipopt"`` catches (issue 16, README).  Either way a
         failed step applies the shifted previous plan (a failed iterate is continued only if
         finite and within 1 of feasibility).
-    cold : {"ipopt", "warm"}
+    cold : {"fatrop", "ipopt", "warm"}, optional
         Solver of the first step of an episode, from a rolled-out guess: the warm solver
         (``"warm"``: at most ``max_iter`` iterations, its iterate applied if finite,
         as there is no previous plan to fall back on but the guess, and continued on the next
-        step), or IPOPT with up to ``max(10 * max_iter, 300)`` iterations (default; about 15
-        times as long as a median warm step).
+        step), or fatrop or IPOPT with up to ``max(10 * max_iter, 300)`` iterations (the
+        default: fatrop if CasADi has it, else IPOPT).
     lookahead_penalty : casadi.Function, optional
         ``x -> scalar`` added to the cost of every state the lookahead enumerates.
     adapt : bool
@@ -133,6 +138,12 @@ class DiscreteInputMPC:
         shifted by one interval per step, to stay aligned in time, and the first solve after
         the rule lets go warm-starts from it as usual (counted in ``stats.n_resumed``).
         ``True`` is the behaviour before issue 16 (the step median was about twice as long).
+    jit : bool
+        Compile the NLP's functions to C with the system compiler (gcc) and run the solvers
+        on the compiled code (:mod:`~lsindy_cas.control.compiled`): the same iterates, each
+        several times faster.  The first controller for a model (and these options) compiles
+        for a minute or more; the code is cached on disk (``$LSINDY_CACHE_DIR``), so later
+        ones build in about 2 s.
 
     Attributes
     ----------
@@ -150,16 +161,22 @@ class DiscreteInputMPC:
                  horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
                  solver="sqp", relaxation="continuous", rounding="lookahead", depth=4,
                  max_iter=10, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
-                 lookahead_penalty=None, recovery="ipopt", cold="ipopt",
+                 lookahead_penalty=None, recovery=None, cold=None,
                  recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5,
-                 solve_balanced=False):
+                 solve_balanced=False, jit=False):
         self.ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt, horizon,
                        state_lb, state_ub, input_weight, n_substeps, levels_name="force_set")
         self.solver = check_choice("solver", solver, SOLVERS)
         self.relaxation = check_choice("relaxation", relaxation, ("poc", "continuous"))
         self.rounding = check_choice("rounding", rounding, (*ROUNDINGS, "lookahead"))
-        self.recovery = check_choice("recovery", recovery, ("ipopt", "continue"))
-        self.cold = check_choice("cold", cold, ("ipopt", "warm"))
+        robust = default_robust_solver()
+        self.recovery = check_solver_available("recovery", check_choice(
+            "recovery", robust if recovery is None else recovery, (*ROBUST_SOLVERS, "continue")))
+        self.cold = check_solver_available("cold", check_choice(
+            "cold", robust if cold is None else cold, (*ROBUST_SOLVERS, "warm")))
+        # "continue" keeps IPOPT for its occasional recovery (as measured when it was added)
+        recover_solver = "ipopt" if self.recovery == "continue" else self.recovery
+        cold_solver = recover_solver if self.cold == "warm" else self.cold
         inexact_tol = check_real("inexact_tol", inexact_tol, positive=True)
         forgetting = check_real("adapt_forgetting", adapt_forgetting)
         if not 0 < forgetting <= 1:
@@ -178,7 +195,9 @@ class DiscreteInputMPC:
             self._rounder = ROUNDINGS[rounding](self.levels.size)
         self.nlp = MultipleShootingNLP(
             ocp, self.relaxation, self.solver, check_int("max_iter", max_iter, low=1),
-            check_real("tol", tol, positive=True), inexact_tol=inexact_tol)
+            check_real("tol", tol, positive=True), inexact_tol=inexact_tol,
+            cold_solver=cold_solver, recover_solver=recover_solver,
+            jit=check_choice("jit", jit, (False, True)))
         self.accept_inexact = bool(accept_inexact)
         self.solve_balanced = bool(solve_balanced)
         if recover_after is None:
@@ -376,13 +395,14 @@ class DiscreteInputMPC:
         if continued:
             z, lam_g, lam_x = zc, lgc, lxc
         self._warm = self._shifted((z, lam_g, lam_x))
-        return self._applied(x, index, t_start, c_start)
+        return self._applied(x, index, t_start, c_start, kind)
 
-    def _applied(self, x, index, t_start, c_start):
-        """Record the step (state and force for the online correction, step times) and return
-        the force of level ``index``."""
+    def _applied(self, x, index, t_start, c_start, kind):
+        """Record the step (state and force for the online correction, step times, ``kind``
+        of step) and return the force of level ``index``."""
         force = float(self.levels[index])
         self._last = (x, force)
+        self.stats.step_kinds.append(kind)
         self.stats.step_times.append(time.perf_counter() - t_start)
         self.stats.step_cpu_times.append(time.thread_time() - c_start)
         return force
@@ -410,4 +430,4 @@ class DiscreteInputMPC:
         the next solve (:meth:`_catch_up`), to stay aligned in time."""
         self.stats.n_balanced += 1
         self._idle += 1  # the plan is shifted by as many intervals when the next solve runs
-        return self._applied(x, index, t_start, c_start)
+        return self._applied(x, index, t_start, c_start, "balanced")

@@ -15,9 +15,28 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["SOLVERS", "MultipleShootingNLP"]
+from .compiled import check_compiler, compiled_function, compiled_nlpsol
+
+__all__ = ["ROBUST_SOLVERS", "SOLVERS", "MultipleShootingNLP", "check_solver_available",
+           "default_robust_solver"]
 
 SOLVERS = ("sqp", "sqp-gn", "fatrop", "ipopt")
+#: solvers of cold starts and recoveries (the robust ones: interior-point methods)
+ROBUST_SOLVERS = ("fatrop", "ipopt")
+
+
+def default_robust_solver():
+    """``"fatrop"`` if this CasADi has the fatrop plugin (the wheels do), else ``"ipopt"``."""
+    return "fatrop" if ca.has_nlpsol("fatrop") else "ipopt"
+
+
+def check_solver_available(name, value):
+    """Raise ValueError (naming the argument ``name``) if CasADi lacks the solver ``value``."""
+    plugin = "sqpmethod" if value.startswith("sqp") else value
+    if plugin in ("fatrop", "ipopt", "sqpmethod") and not ca.has_nlpsol(plugin):
+        raise ValueError(f"{name}={value!r} needs CasADi's {plugin} plugin, which this CasADi "
+                         f"lacks; choose another {name}.")
+    return value
 
 
 class MultipleShootingNLP:
@@ -32,8 +51,7 @@ class MultipleShootingNLP:
         ``input_weight * dt * (u / F_max)**2`` (continuous).
     relaxation : {"poc", "continuous"}
     solver : {"sqp", "sqp-gn", "fatrop", "ipopt"}
-        Solver of warm-started steps (:attr:`solver`); the robust solver for cold guesses
-        and for recovery after a failure is IPOPT (``solvers["cold"]``, ``["recover"]``).
+        Solver of warm-started steps (:attr:`solver`).
     max_iter : int
         Iteration cap of :attr:`solver`.
     tol : float
@@ -43,11 +61,24 @@ class MultipleShootingNLP:
     inexact_tol : float
         Largest constraint violation of a capped solve's iterate that still counts as
         ``"inexact"`` rather than ``"failed"`` (see :meth:`solve`).
+    cold_solver, recover_solver : {"fatrop", "ipopt"}
+        The robust (interior-point) solver for cold guesses and for recovery after a failure
+        (``solvers["cold"]``, ``["recover"]``), with ``max(10 * max_iter, 300)`` iterations.
+        fatrop exploits the stage structure: on the swing-up's recoveries it reached IPOPT's
+        optimum (median relative cost difference 2e-6) in about a third of the time
+        (``benchmarks/bench_mpc.py``).
+    jit : bool
+        Compile the NLP's functions to C (:mod:`~lsindy_cas.control.compiled`: several times
+        faster iterations; the first build for a model compiles for about a minute, later
+        ones load the compiled code from the cache).
     """
 
     def __init__(self, ocp, relaxation, solver, max_iter, tol, slack_weight=1e5,
-                 inexact_tol=1e-6):
+                 inexact_tol=1e-6, cold_solver="ipopt", recover_solver="ipopt", jit=False):
         self.ocp = ocp
+        self.jit = bool(jit)
+        if self.jit:
+            check_compiler()
         step, n_state = ocp.step, ocp.n_state
         horizon, dt, input_weight = ocp.horizon, ocp.dt, ocp.input_weight
         stage_residual, terminal_residual = ocp.stage_residual, ocp.terminal_residual
@@ -145,30 +176,50 @@ class MultipleShootingNLP:
         self.solver_name = solver
         self._nlp, self._nu, self._ng_path, self._tol = nlp, nu, ng_path, tol
         self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol)
+        # the sign of each constraint row in the NLP as built: the gaps are negated for HPIPM
+        self._gap_rows = np.concatenate([r[:n_state] for r in rows[:-1]])
         # cold starts (first step of an episode) and recoveries after a failed step need many
-        # more iterations than warm starts: exact-Hessian IPOPT on the same NLP
+        # more iterations than warm starts: an interior-point method on the same NLP
         cold = max(10 * max_iter, 300)
         self.max_iters = {"warm": max_iter, "recover": cold, "cold": cold}
         self.solvers = {"warm": self.solver}
-        self.solvers["cold"] = self.solvers["recover"] = self._make_solver(
-            nlp, "ipopt", nu, ng_path, cold, tol)
+        self._flip = {"warm": False}  # whether a solver sees the gaps with the other sign
+        self._plugin = {"warm": solver}
+        # fatrop loops without end when a function evaluation fails (NaN) from its very
+        # first iterate: such a guess is refused before it is handed over (see solve)
+        self._fg = ca.Function("fg", [nlp["x"], p], [nlp["f"], nlp["g"]])
+        robust = {}
+        for kind, name in (("cold", cold_solver), ("recover", recover_solver)):
+            if name not in robust:
+                # fatrop wants the gaps as x_{k+1} - F: the HPIPM-signed rows negated
+                flip = name == "fatrop" and solver.startswith("sqp")
+                g = nlp["g"]
+                if flip:
+                    sign = np.ones(len(lbg))
+                    sign[self._gap_rows] = -1.0
+                    g = ca.DM(sign) * g
+                robust[name] = (self._make_solver(dict(nlp, g=g), name, nu, ng_path, cold,
+                                                  tol), flip)
+            self.solvers[kind], self._flip[kind] = robust[name]
+            self._plugin[kind] = name
 
     def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol):
         n, N = self.n_state, self.horizon
         common = {"expand": True, "print_time": False, "error_on_fail": False}
+        nlpsol = compiled_nlpsol if self.jit else ca.nlpsol
         if solver == "ipopt":
             opts = dict(common, ipopt={
                 "print_level": 0, "sb": "yes", "max_iter": max_iter, "tol": tol,
                 "acceptable_tol": 10 * tol, "warm_start_init_point": "yes",
                 "mu_init": 1e-3, "warm_start_bound_push": 1e-6,
                 "warm_start_mult_bound_push": 1e-6, "linear_solver": "mumps"})
-            return ca.nlpsol("mpc", "ipopt", nlp, opts)
+            return nlpsol("mpc", "ipopt", nlp, opts)
         structure = {"N": N, "nx": [0] + [n] * N, "nu": nu, "ng": ng_path}
         if solver == "fatrop":
             opts = dict(common, structure_detection="manual", **structure,
                         fatrop={"print_level": 0, "max_iter": max_iter, "tolerance": tol,
                                 "mu_init": 1e-2})
-            return ca.nlpsol("mpc", "fatrop", nlp, opts)
+            return nlpsol("mpc", "fatrop", nlp, opts)
         # SQP with HPIPM (a Riccati-based interior-point QP solver for this stage structure);
         # the exact Hessian is convexified block by block, "sqp-gn" uses Gauss-Newton instead
         qp = dict(structure, hpipm={"iter_max": 100, "warm_start": 1}, error_on_fail=False)
@@ -179,6 +230,11 @@ class MultipleShootingNLP:
             opts["convexify_strategy"] = "eigen-clip"
         else:
             opts["hess_lag"] = self._gn_hessian
+        if self.jit:  # HPIPM cannot be serialised: compile the SQP's functions instead
+            plain = ca.nlpsol("mpc", "sqpmethod", nlp, opts)
+            opts["hess_lag"] = compiled_function(opts.get("hess_lag")
+                                                 or plain.get_function("nlp_hess_l"))
+            opts["jac_fg"] = compiled_function(plain.get_function("nlp_jac_fg"))
         return ca.nlpsol("mpc", "sqpmethod", nlp, opts)
 
     # --- packing -------------------------------------------------------------------------
@@ -230,6 +286,12 @@ class MultipleShootingNLP:
         iters : int
         """
         solver = self.solvers[kind]
+        if self._plugin[kind] == "fatrop" and not self._finite_at(z0, x_init):
+            self.last_status, self.last_violation = "nonfinite_guess", np.inf
+            return "failed", z0, lam_g0, lam_x0, 0
+        flip = self._flip[kind]
+        if flip:  # the gap rows' multipliers change sign with the rows
+            lam_g0 = self._flip_gaps(lam_g0)
         res = solver(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg,
                      ubg=self.ubg, lam_g0=lam_g0, lam_x0=lam_x0)
         st = solver.stats()
@@ -253,4 +315,18 @@ class MultipleShootingNLP:
             outcome = "inexact"
         else:
             outcome = "failed"
-        return outcome, z, np.asarray(res["lam_g"]).ravel(), np.asarray(res["lam_x"]).ravel(), iters
+        lam_g = np.asarray(res["lam_g"]).ravel()
+        if flip:
+            lam_g = self._flip_gaps(lam_g)
+        return outcome, z, lam_g, np.asarray(res["lam_x"]).ravel(), iters
+
+    def _finite_at(self, z, x_init):
+        """Whether the cost and constraints are finite at ``z`` (the model evaluates there)."""
+        f, g = self._fg(z, x_init)
+        return bool(np.isfinite(float(f)) and np.all(np.isfinite(np.asarray(g))))
+
+    def _flip_gaps(self, lam_g):
+        """A copy of ``lam_g`` with the shooting gaps' multipliers negated."""
+        lam_g = np.array(lam_g, dtype=float).ravel()
+        lam_g[self._gap_rows] *= -1.0
+        return lam_g

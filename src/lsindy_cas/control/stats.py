@@ -43,8 +43,11 @@ class MPCStats:
     iterations : list of int
         Solver iterations per solve.
     solve_kinds : list of str
-        Which solver ran each solve: ``"warm"`` (the warm-started solver), ``"cold"`` (IPOPT,
-        first step of an episode) or ``"recover"`` (IPOPT after a failed step).
+        Which solver ran each solve: ``"warm"`` (the warm-started solver), ``"cold"`` (first
+        step of an episode) or ``"recover"`` (after a failed step).
+    step_kinds : list of str
+        What each controller call did, aligned with ``step_times``: the kind of its solve, or
+        ``"balanced"`` (a subclass's own rule decided, without a solve).
     statuses : dict
         Count of each solver return status.
     """
@@ -60,15 +63,27 @@ class MPCStats:
     step_cpu_times: list = field(default_factory=list)
     iterations: list = field(default_factory=list)
     solve_kinds: list = field(default_factory=list)
+    step_kinds: list = field(default_factory=list)
     statuses: dict = field(default_factory=dict)
 
     def clear(self):
         """Reset all counters."""
         self.__init__()
 
+    def slow_steps(self, limit_ms=20.0, cpu=False):
+        """Number of controller calls longer than ``limit_ms`` milliseconds (wall clock, or
+        CPU time of the calling thread with ``cpu=True``) per kind of step
+        (:attr:`step_kinds`): what the step-time p99 is made of."""
+        t = np.asarray(self.step_cpu_times if cpu else self.step_times) * 1e3
+        kinds = np.asarray(self.step_kinds, dtype=object)
+        if kinds.size != t.size:  # steps recorded by hand without a kind
+            kinds = np.full(t.size, "unknown", dtype=object)
+        return {str(k): int(np.sum((kinds == k) & (t > limit_ms))) for k in np.unique(kinds)}
+
     def summary(self):
         """Dictionary of counts and solve-time percentiles in milliseconds (overall, and count,
-        median and maximum per solve kind under ``"by_kind"``) and the solver statuses."""
+        median and maximum per solve kind under ``"by_kind"``), the steps over 20 ms per kind
+        (``"slow_steps"``, wall clock and ``"slow_steps_cpu"``) and the solver statuses."""
         t = np.asarray(self.solve_times) * 1e3
         kinds = np.asarray(self.solve_kinds, dtype=object)  # appended with solve_times
         by_kind = {k: {"n": int(np.sum(kinds == k)),
@@ -88,4 +103,5 @@ class MPCStats:
                 "step_ms_median": pct(s, 50), "step_ms_p99": pct(s, 99),
                 "step_cpu_ms_median": pct(sc, 50), "step_cpu_ms_p99": pct(sc, 99),
                 "iterations_median": pct(np.asarray(self.iterations), 50), "by_kind": by_kind,
+                "slow_steps": self.slow_steps(), "slow_steps_cpu": self.slow_steps(cpu=True),
                 "statuses": dict(self.statuses)}

@@ -1,0 +1,126 @@
+"""Compiled NLP functions for the MPC's solvers (``jit=True``), cached on disk.
+
+CasADi evaluates the expanded SX functions of an NLP in its virtual machine at about 10 ns per
+instruction; the swing-up's Hessian of the Lagrangian (40 RK4 intervals) has about 125,000, so
+one evaluation costs about 1 ms, most of an interior-point iteration.  Compiled to C (the system
+compiler at ``-O1``) the same functions run several times faster: fatrop's iteration on the
+swing-up OCP went from 1.5 to 0.36 ms (CPU time, loaded machine, issue 16).  Compiling takes
+long (35-60 s for that Hessian), so the compiled code is kept on disk: the controller's solvers
+(fatrop, IPOPT: the whole solver with its binary embedded, CasADi's serialisation) or functions
+(the SQP's Hessian and Jacobian, handed to ``sqpmethod`` as ``hess_lag``/``jac_fg``) are stored
+under a key hashing everything they depend on (the NLP's own serialisation, the solver and its
+options, the versions of lsindy_cas and CasADi), so a controller built before for the same model
+and options loads in about a second.
+
+The folder is that of :mod:`lsindy_cas.symbolic.fcache` (``$LSINDY_CACHE_DIR``; ``off`` disables
+the cache, and then every build compiles).  A missing, unreadable or corrupt file is rebuilt, and
+an unwritable folder only means nothing is saved.  Files are large (about 40 MB for the
+swing-up's three: the SQP's Hessian and Jacobian, fatrop with its NLP) and may be deleted at
+any time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+
+from .._io import atomic_write
+from ..symbolic.fcache import cache_dir
+
+__all__ = ["check_compiler", "compiled_function", "compiled_nlpsol"]
+
+FORMAT = 3  # bump when what is compiled, or how, changes
+FLAGS = ["-O1"]  # -O0 compiled in 38 s but ran at 0.9 ms per fatrop iteration, -O1: 57 s, 0.36
+
+
+def check_compiler():
+    """Raise ValueError unless a C compiler (``gcc``, which CasADi's ``shell`` JIT calls) is on
+    the PATH."""
+    if shutil.which("gcc") is None:
+        raise ValueError("jit=True needs a C compiler (gcc) on the PATH; install one or pass "
+                         "jit=False.")
+
+
+def _jit_options():
+    return {"jit": True, "compiler": "shell", "jit_serialize": "embed",
+            "jit_options": {"flags": list(FLAGS), "verbose": False}}
+
+
+@contextlib.contextmanager
+def _scratch():
+    """Run inside a new folder under the system's temporary one: CasADi's JIT writes its C
+    source and library into the current directory (and removes them when the Function is
+    freed, leaving the empty folder)."""
+    cwd = os.getcwd()
+    os.chdir(tempfile.mkdtemp(prefix="lsindy_jit_"))
+    try:
+        yield
+    finally:
+        os.chdir(cwd)
+
+
+def _path(kind, parts):
+    """Cache file for ``kind`` and the JSON-able ``parts`` (None when the cache is off)."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    from .._version import __version__
+    text = json.dumps([FORMAT, __version__, ca.__version__, FLAGS, kind, *parts])
+    return folder / f"jit-{kind}-{hashlib.sha256(text.encode()).hexdigest()[:32]}.casadi"
+
+
+def _load_or_build(path, build):
+    """The Function stored at ``path``, or ``build()`` (then stored there)."""
+    if path is not None and path.exists():
+        try:
+            return ca.Function.load(str(path))
+        except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
+            pass
+    with _scratch():
+        f = build()
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write(path, lambda tmp: f.save(str(tmp)))
+        except Exception:  # noqa: BLE001 - read-only or full disk: run uncached
+            pass
+    return f
+
+
+def compiled_function(f):
+    """A compiled copy of the SX function ``f`` (same inputs, outputs and names)."""
+    def build():
+        sx_in = f.sx_in()
+        return ca.Function(f.name(), sx_in, f.call(sx_in), f.name_in(), f.name_out(),
+                           _jit_options())
+    return _load_or_build(_path("function", [f.serialize()]), build)
+
+
+def compiled_nlpsol(name, plugin, nlp, opts):
+    """``casadi.nlpsol(name, plugin, nlp, opts)`` with its NLP functions compiled.
+
+    Parameters
+    ----------
+    name, plugin : str
+    nlp : dict
+        ``{"x", "p", "f", "g"}`` SX expressions.
+    opts : dict
+        Solver options (JSON-able apart from CasADi Functions, which must not be given here).
+    """
+    fg = ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]])
+    parts = [name, plugin, json.dumps(opts, sort_keys=True), fg.serialize()]
+    return _load_or_build(_path("nlpsol", parts),
+                          lambda: ca.nlpsol(name, plugin, nlp, dict(opts, **_jit_options())))
+
+
+def cached_files():
+    """The compiled files in the cache folder (for tests and cleaning up)."""
+    folder = cache_dir()
+    return sorted(Path(folder).glob("jit-*.casadi")) if folder is not None else []

@@ -1,0 +1,124 @@
+"""Tests of the MPC's real-time pieces (issue 16, part 3): fatrop cold starts and recoveries,
+the per-step record of what each step ran, and the compiled (JIT) NLP functions."""
+
+import shutil
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from lsindy_cas.control import compiled
+from lsindy_cas.control.shooting import default_robust_solver
+from lsindy_cas.mpc import SwingUpMPC
+from lsindy_cas.paper.swingup import identify_cart_pendulum
+
+needs_fatrop = pytest.mark.skipif(not ca.has_nlpsol("fatrop"),
+                                  reason="this CasADi has no fatrop plugin")
+needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler (gcc)")
+
+
+@pytest.fixture(scope="module")
+def model():
+    return identify_cart_pendulum()[0]
+
+
+@needs_fatrop
+def test_fatrop_is_the_default_robust_solver_and_recovers_the_sqp_optimum(model):
+    """The default cold/recovery solver is fatrop; started from a converged SQP plan it
+    converges to a plan as cheap, with multipliers of the same sign: the shooting gaps' sign
+    convention is translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
+    ctrl = SwingUpMPC(model)
+    assert default_robust_solver() == "fatrop"
+    assert ctrl.cold == "fatrop" and ctrl.recovery == "fatrop"
+    nlp = ctrl.nlp
+    cost = ca.Function("f", [nlp._nlp["x"], nlp._nlp["p"]], [nlp._nlp["f"]])
+    x = np.array([0.1, 2.5, 0.0, 0.5])
+    z, lam_g, lam_x = ctrl._cold_start(x)
+    outcome, z, lam_g, lam_x, _ = nlp.solve(x, z, lam_g, lam_x, kind="cold")
+    assert outcome == "converged"
+    outcome, z, lam_g, lam_x, _ = nlp.solve(x, z, lam_g, lam_x, kind="warm")
+    assert outcome == "converged"  # the SQP accepts fatrop's optimum (0 iterations here)
+    outcome, z2, lam_g2, _, _ = nlp.solve(x, z, lam_g, lam_x, kind="recover")
+    assert outcome == "converged"
+    # the relaxed optimum is not unique (a bang-bang tail may flip); its cost is: both stop
+    # at tolerance 1e-4, fatrop may go on to a slightly lower one (here -0.06 %)
+    assert float(cost(z2, x)) <= float(cost(z, x)) * (1 + 1e-3)
+    gaps = nlp._gap_rows  # with the sign wrong the correlation would be about -1
+    assert np.corrcoef(lam_g[gaps], lam_g2[gaps])[0, 1] > 0.9
+
+
+def test_cold_and_recovery_options_and_their_bad_values(model):
+    ctrl = SwingUpMPC(model, cold="ipopt", recovery="ipopt")
+    assert ctrl.nlp._plugin == {"warm": "sqp", "cold": "ipopt", "recover": "ipopt"}
+    for kwargs, word in (({"cold": "snopt"}, "cold"), ({"recovery": "fatropp"}, "recovery"),
+                         ({"jit": "yes"}, "jit")):
+        with pytest.raises(ValueError, match=word):
+            SwingUpMPC(model, **kwargs)
+
+
+def test_every_step_records_what_it_ran_and_slow_steps_count_them(model):
+    ctrl = SwingUpMPC(model)
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    ctrl(x)
+    ctrl(x)
+    ctrl._own_level = lambda state: 1  # the own rule decides: no solve
+    ctrl(x)
+    stats = ctrl.stats
+    assert stats.step_kinds[0] == "cold" and stats.step_kinds[1] in ("warm", "recover")
+    assert stats.step_kinds[2] == "balanced"
+    assert len(stats.step_kinds) == len(stats.step_times) == 3
+    assert sum(stats.slow_steps(limit_ms=0.0).values()) == 3  # every step took > 0 ms
+    assert stats.slow_steps(limit_ms=1e9) == {"balanced": 0, "cold": 0,
+                                              stats.step_kinds[1]: 0}
+    summary = stats.summary()
+    assert set(summary["slow_steps"]) == set(stats.step_kinds)
+    assert set(summary["slow_steps_cpu"]) == set(stats.step_kinds)
+
+
+@needs_fatrop
+def test_a_guess_where_the_model_does_not_evaluate_is_refused_before_fatrop(model):
+    """fatrop loops without end on NaN evaluations: the solve is a failure without calling it."""
+    ctrl = SwingUpMPC(model)
+    nlp = ctrl.nlp
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    z, lam_g, lam_x = ctrl._cold_start(x)
+    z[nlp._ix[3, 0]] = np.nan
+    outcome, z_out, _, _, iters = nlp.solve(x, z, lam_g, lam_x, kind="recover")
+    assert (outcome, nlp.last_status, iters) == ("failed", "nonfinite_guess", 0)
+    assert z_out is z
+
+
+@needs_gcc
+def test_compiled_function_matches_and_is_loaded_from_the_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("LSINDY_CACHE_DIR", str(tmp_path))
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("f", [x], [ca.sin(x[0]) * x[1], ca.exp(x[1])], ["x"], ["a", "b"])
+    g = compiled.compiled_function(f)
+    files = compiled.cached_files()
+    assert len(files) == 1
+    point = np.array([0.3, -1.2])
+    for out_f, out_g in zip(f(point), g(point)):
+        np.testing.assert_allclose(np.asarray(out_g), np.asarray(out_f), rtol=1e-14)
+    assert g.name_in() == ["x"] and g.name_out() == ["a", "b"]
+    # a second build loads the stored code (no new file); a corrupt file is rebuilt
+    h = compiled.compiled_function(f)
+    assert compiled.cached_files() == files
+    np.testing.assert_allclose(np.asarray(h(point)[0]), np.asarray(f(point)[0]), rtol=1e-14)
+    files[0].write_bytes(b"not casadi")
+    k = compiled.compiled_function(f)
+    np.testing.assert_allclose(np.asarray(k(point)[1]), np.asarray(f(point)[1]), rtol=1e-14)
+
+
+@needs_gcc
+def test_compiled_nlpsol_solves_like_the_plain_one(tmp_path, monkeypatch):
+    monkeypatch.setenv("LSINDY_CACHE_DIR", str(tmp_path))
+    z, p = ca.SX.sym("z", 2), ca.SX.sym("p")
+    nlp = {"x": z, "p": p, "f": (z[0] - p) ** 2 + 10 * (z[1] - z[0] ** 2) ** 2, "g": z[0] + z[1]}
+    opts = {"ipopt": {"print_level": 0, "sb": "yes"}, "print_time": False}
+    plain = ca.nlpsol("s", "ipopt", nlp, opts)
+    fast = compiled.compiled_nlpsol("s", "ipopt", nlp, opts)
+    args = {"x0": [0.0, 0.0], "p": 1.5, "lbg": -np.inf, "ubg": 1.0}
+    # the same algorithm on the same functions: the same iterates to rounding
+    np.testing.assert_allclose(np.asarray(fast(**args)["x"]), np.asarray(plain(**args)["x"]),
+                               atol=1e-10)
+    assert len(compiled.cached_files()) == 1
