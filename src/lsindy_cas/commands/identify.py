@@ -156,7 +156,8 @@ def add_to(sub) -> None:
     ident.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                        help="branch and bound (libraries too large to score every support): stop "
                        "each search after SECONDS with the best admissible support found, marked "
-                       "not proven with its optimality gap (Ctrl-C does the same)")
+                       "not proven with its optimality gap (Ctrl-C does the same); with automatic "
+                       "k, the k chosen (the scan's other searches stop after at most 5 s)")
     ident.add_argument("--json", metavar="OUT.json",
                        help="write the model file here (its folder must exist)")
     ident.set_defaults(func=run)

@@ -77,8 +77,10 @@ class LagrangianSINDy(FittedModel):
     time_limit : float, optional
         Seconds allowed to each branch-and-bound search (libraries too large to score every
         support); when it runs out the best admissible support found is kept, marked not proven
-        with its gap (``search_``).  The re-selection on the noise-weighted balance gets at most
-        as long as the first search took (:mod:`lsindy_cas.identify.reweight`).
+        with its gap (``search_``).  With automatic k the scan's searches are scouts of at most
+        ``SCOUT_LIMIT`` (5 s) and the k chosen gets the whole limit
+        (:mod:`lsindy_cas.identify.selection`).  The re-selection on the noise-weighted balance
+        gets at most as long as the first search took (:mod:`lsindy_cas.identify.reweight`).
 
     Attributes (after ``fit``)
     --------------------------

@@ -321,7 +321,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         Expected noise of the rows (driven data): enables the discrepancy cap on k.
     progress : callable ``(n_done, n_total)``, optional
     time_limit : float, optional
-        Seconds allowed to each branch-and-bound search (see :mod:`lsindy_cas.identify.bnb`).
+        Seconds allowed to each branch-and-bound search (see :mod:`lsindy_cas.identify.bnb`);
+        with automatic k to the chosen k's, the scan's scouts get at most ``SCOUT_LIMIT``.
 
     Returns
     -------
