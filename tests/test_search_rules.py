@@ -83,12 +83,15 @@ def test_batched_rules_keep_the_winner_and_the_stopping_point():
     assert n_saved > 0 and n_deep >= 3          # not vacuous: fits skipped before real winners
 
 
-def test_structurally_inadmissible_matches_the_definition(rng):
-    S = combinations(8, 3)
-    banned, required = [7], [np.array([0, 1]), np.array([2, 5])]
-    got = structurally_inadmissible((banned, required), S)
-    want = [7 in row or not ({0, 1} & set(row)) or not ({2, 5} & set(row)) for row in S.tolist()]
+@pytest.mark.parametrize("n_sets", [0, 2, 63, 64, 130])   # the sets go 63 to a bit mask
+def test_structurally_inadmissible_matches_the_definition(rng, n_sets):
+    S = combinations(30, 3)
+    required = [rng.choice(30, 27, replace=False) for _ in range(n_sets)]
+    got = structurally_inadmissible(([5], required), S)
+    want = [5 in row or any(not (set(r.tolist()) & set(row)) for r in required)
+            for row in S.tolist()]
     np.testing.assert_array_equal(got, want)
+    assert 0 < got.sum() < len(S)
 
 
 def test_best_subset_on_the_cart_pendulum_is_unchanged_by_the_batched_rules():

@@ -276,19 +276,18 @@ def structurally_inadmissible(structure: tuple, S: np.ndarray) -> np.ndarray:
     :func:`~lsindy_cas.identify.screening.structure_of`)."""
     banned, required = structure
     S = np.asarray(S, dtype=np.int64)
-    p = int(S.max()) + 1 if S.size else 0
-    for r in required:
-        if len(r):
-            p = max(p, int(np.max(r)) + 1)
-    if banned:
-        p = max(p, max(int(j) for j in banned) + 1)
-    bad = np.zeros(p, dtype=bool)
-    bad[list(banned)] = True
-    out = bad[S].any(axis=1)
-    for r in required:
-        hit = np.zeros(p, dtype=bool)
-        hit[np.asarray(r, dtype=np.int64)] = True
-        out |= ~hit[S].any(axis=1)
+    p = 1 + max([int(S.max()) if S.size else 0] + [int(j) for j in banned]
+                + [int(np.max(r)) for r in required if len(r)])
+    out = np.zeros(len(S), dtype=bool)
+    for lo in range(0, len(required) + (not required), 63):   # 63 sets per bit mask; bit 63: banned
+        mask = np.zeros(p, dtype=np.uint64)
+        sets = required[lo:lo + 63]
+        for i, r in enumerate(sets):
+            mask[np.asarray(r, dtype=np.int64)] |= np.uint64(1 << i)
+        mask[list(banned)] |= np.uint64(1 << 63)
+        met = np.bitwise_or.reduce(mask[S], axis=1) if S.size else np.zeros(0, np.uint64)
+        want = np.uint64((1 << len(sets)) - 1)
+        out |= ((met & want) != want) | ((met >> np.uint64(63)) != 0)
     return out
 
 
