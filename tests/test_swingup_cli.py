@@ -47,3 +47,11 @@ def test_default_scenarios_are_all_three(monkeypatch):
                         lambda model, **kw: seen.update(kw) or {"scenarios": {}})
     assert cli.main(["swingup"]) == 0
     assert seen["scenarios"] == list(swingup.SCENARIOS) and seen["controller_options"] == {}
+
+
+def test_jit_option_reaches_the_controller(monkeypatch):
+    seen = {}
+    monkeypatch.setattr(swingup, "run_swingup",
+                        lambda model, **kw: seen.update(kw) or {"scenarios": {}})
+    assert cli.main(["swingup", "--jit", "--scenarios", "nominal"]) == 0
+    assert seen["controller_options"] == {"jit": True}

@@ -31,6 +31,10 @@ def add_swingup_arguments(parser):
     parser.add_argument("--inexact-tol", type=float, default=None, metavar="TOL",
                         help="largest constraint violation of an iteration-capped solve that is "
                              "still applied (default 1e-6)")
+    parser.add_argument("--jit", action="store_true",
+                        help="compile the controller's NLP functions with the C compiler (the "
+                             "first run for a model compiles for a minute or two, cached in "
+                             "$LSINDY_CACHE_DIR; step p99 ~15 ms instead of ~27 ms)")
     parser.add_argument("--json", metavar="OUT.json", help="write the metrics as JSON")
     parser.add_argument("--out", metavar="DIR", help="write the Fig. 5 analogue (PNG) here")
     return parser
@@ -68,6 +72,8 @@ def _controller_options(args):
     tol = getattr(args, "inexact_tol", None)
     if tol is not None:
         opts["inexact_tol"] = check_real("--inexact-tol", tol, positive=True)
+    if getattr(args, "jit", False):
+        opts["jit"] = True
     return opts
 
 
