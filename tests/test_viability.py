@@ -170,3 +170,36 @@ def test_sequence_balancer_holds_the_kick_089_linear_plant_from_settled_starts()
                 e = As @ e + Bs[:, 0] * FORCES[level]
                 worst = max(worst, abs(e[1]) / 0.1, abs(e[3]) / 0.5)
         assert worst < 1.0
+
+
+def test_search_with_the_kernel_is_still_the_exhaustive_optimum():
+    """The kernel terms are non-negative, and the search adds the stage one only to the
+    children the rest of the cost leaves alive: without a beam it still returns the best of
+    all 3^7 sequences."""
+    from lsindy_cas.control.sequence_balancer import SequenceBalancer
+    from lsindy_cas.mpc import SwingUpMPC
+    system = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
+    ctrl = SwingUpMPC(system, balance=False)
+    b = SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
+                         pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05, horizon=7,
+                         max_frontier=10**6, viability=True)
+    every = np.array(list(itertools.product(range(3), repeat=7)))
+    for e in ([0.3, 0.02, 0.2, -0.4], [0.0, 0.06, 0.0, 0.0], [0.0, 0.0, 0.0, 0.45]):
+        e = np.array(e)
+        seq, cost = b.search(e)
+        costs = b._rollout_cost(e, every, b.B, np.zeros(4), b.reference_lean(e))
+        assert b.proven
+        assert cost == pytest.approx(costs.min(), rel=1e-9)
+        assert np.array_equal(seq, every[np.argmin(costs)])
+    # the kernel term fades out as the cart needs the lean to stop: none at the track margin
+    assert b.cart_urgency(np.zeros(4)) == 0.0
+    assert b.cart_urgency(np.array([1.75, 0.0, 0.0, 0.0])) == pytest.approx(1.0)
+    kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
+    with pytest.raises(TypeError, match="viability"):
+        SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, viability="yes", **kw)
+    with pytest.raises(ValueError, match="viability_schedule"):
+        SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, viability=True,
+                         viability_schedule=[], **kw)
+    with pytest.raises(ValueError, match="viability_margin"):
+        SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, viability=True,
+                         viability_margin=-1.0, **kw)

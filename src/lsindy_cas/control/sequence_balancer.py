@@ -152,9 +152,10 @@ class SequenceBalancer(PulseBalancer):
                  horizon=16, max_frontier=500, rate_band=None, violation_weight=1e4,
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
                  terminal_weight=1.0, lean_weight=1e-6, centre_weight=10.0, centre_frequency=0.5,
-                 escape_weight=0.0, viability=False, viability_weight=1.0,
-                 viability_margin=0.25, viability_gains=(1.0,), viability_stage=1.0,
-                 viability_schedule=None, viability_stage_margin=0.25, **options):
+                 escape_weight=0.0, viability=True, viability_weight=1.0,
+                 viability_margin=0.25, viability_gains=(1.0,), viability_stage=0.5,
+                 viability_schedule=None, viability_stage_margin=0.25, viability_cart=True,
+                 **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
@@ -228,6 +229,10 @@ class SequenceBalancer(PulseBalancer):
         self.viability_stage = check_real("viability_stage", viability_stage, nonnegative=True)
         self.viability_stage_margin = check_real("viability_stage_margin",
                                                  viability_stage_margin, nonnegative=True)
+        if not isinstance(viability_cart, bool):
+            raise TypeError(f"viability_cart must be True or False, got {viability_cart!r}.")
+        self.viability_cart = viability_cart
+        self._kernel_w = self.viability_weight * self.violation_weight
         self.kernel, self.kernels = None, {}
         if viability:
             from .viability import pole_kernel
@@ -252,8 +257,9 @@ class SequenceBalancer(PulseBalancer):
         self.plan = None
         self.proven, self.nodes = True, 0
 
-    def _stage(self, z, phi_ref):
-        """Non-negative stage cost of predicted error states ``z`` (n, 4)."""
+    def _stage(self, z, phi_ref, kernel=True):
+        """Non-negative stage cost of predicted error states ``z`` (n, 4) (``kernel=False``:
+        without the viability term, a lower bound the search prunes with first)."""
         comp = z[:, self._comps]
         over = np.abs(comp)
         over -= self._band
@@ -261,7 +267,7 @@ class SequenceBalancer(PulseBalancer):
         lean = z[:, self.ip] - phi_ref
         cost = ((over * over) @ self._band_w + ((z @ self.Q) * z).sum(axis=1)
                 + self._lean_dt * lean * lean)
-        if self.viability_stage > 0.0:
+        if kernel and self.viability_stage > 0.0:
             cost += self.viability_stage * self._viability(z, self._stage_target)
         return cost
 
@@ -287,11 +293,24 @@ class SequenceBalancer(PulseBalancer):
         """Penalty on ending outside the pole's viability kernel held with the target margin:
         ``viability_weight * violation_weight * max(0, J(phi, theta_dot) + target)^2`` with
         ``J`` the kernel's normalised value and ``target = viability_margin * max_margin``."""
-        if self.kernel is None or self.viability_weight == 0.0:
+        if self.kernel is None or self._kernel_w == 0.0:
             return 0.0
         over = self.kernel.value(z[:, self.ip], z[:, 2 + self.ip]) + target
         np.maximum(over, 0.0, out=over)
-        return self.viability_weight * self.violation_weight * over * over
+        return self._kernel_w * over * over
+
+    def cart_urgency(self, e):
+        """Where the cart would stop, leaning by ``brake_fraction * max_lean`` from now, as a
+        share of the usable track (0: at the centre and still, 1: at the track's margin).
+
+        Uses the cart's slow subsystem ``p = x - ratio * phi``, ``v0 = x_dot - ratio *
+        theta_dot`` (the pushes do not move it): ``|p + v0 |v0| / (2 a)|`` with ``a =
+        brake_fraction * |kappa| * max_lean``.
+        """
+        p = e[self.ic] - self.ratio * e[self.ip]
+        v0 = e[2 + self.ic] - self.ratio * e[2 + self.ip]
+        brake = self.brake_fraction * abs(self.kappa) * self.max_lean
+        return abs(p + v0 * abs(v0) / (2 * brake)) / (self.track_limit - self.track_margin)
 
     def _escape(self, z):
         """Penalty on the lean the pole must reach before a push can keep its rate in the band.
@@ -345,6 +364,10 @@ class SequenceBalancer(PulseBalancer):
             self._use_kernel(1.0 + gain[2 + self.ip])
         H, n_lev = self.horizon, self.levels.size
         phi_ref = self.reference_lean(e)
+        # the kernel term fades as the cart needs the lean to stop inside the track (the
+        # kernel knows only the pole): full weight at the centre, none at the track's margin
+        fade = max(0.0, 1.0 - self.cart_urgency(e)) ** 2 if self.viability_cart else 1.0
+        self._kernel_w = self.viability_weight * self.violation_weight * fade
         # incumbent: the previous plan shifted by one interval, and waiting throughout
         cands = [np.full(H, self.zero)]
         if self.plan is not None:
@@ -359,11 +382,17 @@ class SequenceBalancer(PulseBalancer):
         for k in range(H):
             nxt = states @ self.A.T + bias
             child = (nxt[:, None, :] + self._push_b(b)[None]).reshape(-1, 4)   # (M * L, 4)
-            c = np.repeat(costs, n_lev) + np.tile(push_cost, costs.size) + self._stage(child, phi_ref)
+            c = (np.repeat(costs, n_lev) + np.tile(push_cost, costs.size)
+                 + self._stage(child, phi_ref, kernel=False))
             if k == H - 1:
                 c += self._terminal(child)
             nodes += c.size
             keep = np.flatnonzero(c < best)
+            if self.viability_stage > 0.0 and self._kernel_w > 0.0 and keep.size:
+                # the kernel term only for the children the rest of the cost left alive
+                c[keep] += self.viability_stage * self._viability(child[keep],
+                                                                  self._stage_target)
+                keep = keep[c[keep] < best]
             if keep.size == 0:
                 break
             if k == H - 1:
