@@ -5,7 +5,9 @@ patterns of its +-10 % mismatch (cart mass, pole mass, pole length), the viabili
 pole at the upright (:mod:`lsindy_cas.control.viability`, built from the plant's exact
 upright linearisation): its largest margin (negative: empty, no controller can hold the pole
 in the success band |phi| < 0.1 rad, |theta_dot| < 0.5 rad/s), the share of the band it covers,
-whether 8 settled starts (|phi| < 0.03, |theta_dot| < 0.2) are inside, and the build time.
+whether 8 settled starts (|phi| < 0.03, |theta_dot| < 0.2) are inside, and the build time;
+then the sequence balancer's plan time with and without the kernel, closed loop on the
+linearised 0.8/0.2/0.7 plant from settled starts.
 The issue's own numbers are the check: kick 0.89 rad/s held from 8/8 settled starts, 1.0 from
 none.
 
@@ -51,6 +53,48 @@ def kernel_row(mc, mp, L, n_grid):
             "iterations": K.iterations, "converged": K.converged, "seconds": K.seconds}
 
 
+def plan_times(mc=0.8, mp=0.2, L=0.7, starts=6, steps=60):
+    """Per-step plan time (ms) of the sequence balancer with and without the kernel, closed
+    loop on the plant's exact upright linearisation from settled starts, and whether the pole
+    stayed in the success band (every 10 ms).  Returns one dict per variant."""
+    import casadi as ca
+    from scipy.linalg import expm
+
+    from lsindy_cas.control.sequence_balancer import SequenceBalancer
+    ode = systems.cart_pendulum(mc=mc, mp=mp, L=L).ode()
+    xs, us = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
+    jac = ca.Function("j", [xs, us], [ca.jacobian(ode(xs, us), xs),
+                                      ca.jacobian(ode(xs, us), us)])
+    ref = np.array([0.0, np.pi, 0.0, 0.0])
+    Ac, Bc = (np.asarray(m, dtype=float) for m in jac(ref, np.zeros(2)))
+    M = np.zeros((6, 6))
+    M[:4, :4], M[:4, 4:] = Ac, Bc
+    Ed, Es = expm(M * DT), expm(M * DT / 5)
+    lin = ca.Function("lin", [xs, us], [ca.mtimes(Ac, xs - ref) + ca.mtimes(Bc, us)])
+    step = ca.Function("step", [xs, us], [ref + ca.mtimes(Ed[:4, :4], xs - ref)
+                                          + ca.mtimes(Ed[:4, 4:], us)])
+    levels = np.array([-FORCE, 0.0, FORCE])
+    rows = []
+    for viability in (False, True):
+        b = SequenceBalancer(step, lin, levels, cart_index=0, pole_index=1, upright=np.pi,
+                             track_limit=2.0, dt=DT, viability=viability)
+        held = 0
+        for phi, rate in settled(starts, seed=1):
+            b.reset()
+            e, worst = np.array([0.0, phi, 0.0, rate]), 0.0
+            for _ in range(steps):
+                u = levels[b(ref + e)]
+                for _ in range(5):
+                    e = Es[:4, :4] @ e + Es[:4, 4] * u
+                    worst = max(worst, abs(e[1]) / 0.1, abs(e[3]) / 0.5)
+            held += int(worst < 1.0)
+        ms = 1e3 * np.array(b.plan_seconds)
+        rows.append({"viability": viability, "held": held, "starts": starts,
+                     "plan_ms_median": float(np.median(ms)),
+                     "plan_ms_p99": float(np.percentile(ms, 99)), "plans": int(ms.size)})
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, help="output folder (viability.json)")
@@ -81,8 +125,14 @@ def main(argv=None):
         print(f"| {mc} | {mp} | {L} | {nominal['kick']:.2f} | {nominal['max_margin']:+.3f} | "
               f"{nominal['viable_fraction']:.2f} | {nominal['settled_viable']}/8 | {share} | "
               f"{nominal['seconds']:.2f} |", flush=True)
+    timing = plan_times()
+    print("\n| sequence balancer, 0.8/0.2/0.7 linearised, settled starts | held 3 s in the band |"
+          " plan median (ms) | plan p99 (ms) |\n|---|---|---|---|")
+    for r in timing:
+        print(f"| {'with' if r['viability'] else 'without'} the kernel | {r['held']}/{r['starts']}"
+              f" | {r['plan_ms_median']:.1f} | {r['plan_ms_p99']:.1f} |")
     report = {"dt": DT, "force": FORCE, "n_grid": args.n_grid, "plants": rows,
-              "seconds": time.perf_counter() - t0}
+              "plan_times": timing, "seconds": time.perf_counter() - t0}
     (out / "viability.json").write_text(json.dumps(report, indent=1))
     print(f"\n{len(rows)} plants, {report['seconds']:.0f} s; wrote {out / 'viability.json'}")
     return 0
