@@ -83,8 +83,8 @@ def plant_kernel(mc, mp, L):
 def classify(ep, kernel):
     """Failure class of one episode (None on success) and the last 3 s peaks.
 
-    ``track`` (|x| > 2 m), ``unreachable`` (proven: the viability kernel of the plant
-    simulated is empty, no controller can hold its pole in the band), ``fell`` (the pole left
+    ``unreachable`` (proven: the viability kernel of the plant simulated is empty, no
+    controller can hold its pole in the band), ``track`` (|x| > 2 m), ``fell`` (the pole left
     the upright region, |phi| > 0.5 rad, in the last 3 s), ``never_up`` (never near the
     upright), otherwise ``margin``: the pole was balanced but its rate or angle touched the
     success band's edge in the last 3 s.
@@ -96,10 +96,10 @@ def classify(ep, kernel):
     peaks = {"last3_max_rate": float(rate.max()), "last3_max_angle": float(ang.max())}
     if ep.success:
         return None, peaks
+    if kernel.empty:  # first: whatever happened, no controller could have succeeded
+        return "unreachable", peaks
     if ep.track_used > 2.0:
         return "track", peaks
-    if kernel.empty:
-        return "unreachable", peaks
     near = (np.abs(wrap_angle(ep.X[:, 1] - np.pi)) < 0.12) & (np.abs(ep.X[:, 3]) < 0.7)
     if not near.any():
         return "never_up", peaks
