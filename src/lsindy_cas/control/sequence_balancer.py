@@ -58,15 +58,10 @@ viability_weight * violation_weight``): the plan keeps the pole where it can sti
 ever, which gives the pole an infinite horizon (the lean a large kick needs before the catch).
 The kernel knows nothing of the cart, and stopping a drifting cart needs a lean the kernel may
 forbid, so ``w`` fades as ``(1 - cart_urgency)^2`` (the cart's stopping point by leaning, as a
-share of the usable track; ``viability_cart``).  Measured with the exact model (10 starts; 20
-on the first): 0.8/0.2/0.7 nominal 18/20 -> 20/20, 0.6/0.2/1.0 nominal 9 -> 10, 0.5/0.05/1.2
-nominal 6 -> 6, mismatched 0.6/0.2/1.0 5/7 -> 5/7 reachable (without the fade 2/7: the kernel
-kept the cart from being stopped; stage weight 1.0 gave 20/20 and 8/10 nominal but let the
-cart of a start 0.8 m out, moving out, run to 1.56 m).  A kernel robust over the input gains
-0.9-1.1 is empty for the 0.89 rad/s plant (a push known only to 10 % cannot be caught), so
-mismatch uses the nominal kernel; ``viability_schedule`` (one kernel per gain factor, picked by
-the online correction's estimate) measured the same as the nominal kernel (6/7 and 7/9 on two
-mismatched plants) at five times the build time.
+share of the usable track; ``viability_cart``).  A kernel robust over input gains 0.9-1.1 is
+empty for a 0.89 rad/s plant, so mismatch uses the model's own kernel (``viability_schedule``:
+one kernel per gain factor, picked by the online correction).  Measurements and the settings
+tried: docs/history/control.md.
 
 The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
 rate change over one push of the largest force from rest at the upright: a band narrower than
@@ -133,6 +128,10 @@ class SequenceBalancer(PulseBalancer):
         Input-gain factors the kernel must hold for (robust kernel); default the model's own.
     viability_stage : float
         Factor on the kernel term at every predicted state (0: the plan's end only).
+    viability_stage_margin : float
+        The margin asked for at every predicted state, as a share of the largest one.
+    viability_cart : bool
+        Fade the kernel term as the cart needs the lean to stop (:meth:`cart_urgency`).
     viability_schedule : sequence of float, optional
         Input-gain factors to build one kernel each for at construction; each plan uses the
         one nearest to the online correction's estimate ``1 + gain`` of the pole rate.
