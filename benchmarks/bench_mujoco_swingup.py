@@ -10,7 +10,9 @@ For each cart-pendulum below, MuJoCo (an engine we did not write) is the plant t
    force; success as ``lsindy swingup`` (|θ − π| < 0.1 rad and |θ̇| < 0.5 rad/s over the last 3 s,
    |x| ≤ 2 m throughout).
 
-The exact-model ceiling (the controller built from the plant's true equations) runs beside it.
+The exact-model ceiling (the controller built from the plant's true equations) runs beside it,
+and the plant's viability-kernel margin (``lsindy_cas.control.viability``; "empty": no
+controller can hold the pole in the success band with these forces) is reported per plant.
 
     python benchmarks/bench_mujoco_swingup.py --out bench-results            # 10 starts per plant
     python benchmarks/bench_mujoco_swingup.py --out bench-results --starts 20
@@ -81,6 +83,7 @@ def main(argv=None):
     if args.starts < 1:
         ap.error("--starts must be a positive integer")
 
+    from lsindy_cas.control.viability import pole_kernel
     from lsindy_cas.mpc import SwingUpMPC
     from lsindy_cas.paper import systems
     from lsindy_cas.paper.swingup import random_starts, run_episode
@@ -100,7 +103,11 @@ def main(argv=None):
         got = model.terms()
         coef_err = (max(abs(got.get(k, 0.0) / v - 1) for k, v in true_terms.items())
                     if set(got) == set(true_terms) else float("inf"))
+        # the certificate: an empty viability kernel of the plant's own upright linearisation
+        # means no controller can hold its pole in the success band (control/viability.py)
+        kernel = pole_kernel(truth.ode(), 0, 1, np.pi, DT, (-10.0, 0.0, 10.0))
         row = {"plant": name, "mc": mc, "mp": mp, "L": L, "kick_rad_s": 10 * DT / (mc * L),
+               "kernel_margin": kernel.max_margin, "proven_unreachable": kernel.empty,
                "identify_s": round(t_id, 2), "support_exact": set(got) == set(true_terms),
                "max_coef_rel_err": coef_err}
         for label, m in (("identified", model), ("exact", _Exact(truth))):
@@ -125,9 +132,10 @@ def main(argv=None):
                           "solve_ms_p99": float(np.percentile(solve, 99))}
         rows.append(row)
 
-    lines = ["| plant | mc, mp, L | kick (rad/s) | support exact | max coef err | identified: success |"
-             " t_up median (s) | max abs x (m) | failed starts | exact model: success | failed starts |"
-             " solve p99 (ms) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| plant | mc, mp, L | kick (rad/s) | kernel margin | support exact | max coef err |"
+             " identified: success | t_up median (s) | max abs x (m) | failed starts |"
+             " exact model: success | failed starts | solve p99 (ms) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     empty = {"success": "-", "episodes": "-", "median_time_to_upright": None,
              "max_track_used": float("nan"), "failed_starts": [], "solve_ms_p99": float("nan")}
     for r in rows:
@@ -135,6 +143,7 @@ def main(argv=None):
         t_up = "-" if i["median_time_to_upright"] is None else f"{i['median_time_to_upright']:.2f}"
         lines.append(
             f"| {r['plant']} | {r['mc']}, {r['mp']}, {r['L']} | {r['kick_rad_s']:.2f} | "
+            f"{r['kernel_margin']:.3f}{' (empty)' if r['proven_unreachable'] else ''} | "
             f"{r['support_exact']} | {r['max_coef_rel_err']:.1e} | {i['success']}/{i['episodes']} | "
             f"{t_up} | {i['max_track_used']:.2f} | {i['failed_starts'] or '-'} | "
             f"{e['success']}/{e['episodes']} | {e['failed_starts'] or '-'} | {i['solve_ms_p99']:.1f} |")

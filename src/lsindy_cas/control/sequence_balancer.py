@@ -47,6 +47,22 @@ than the horizon sees; the term makes the plan keep the pole swinging instead.  
 default (``escape_weight=0``): on the 0.8/0.2/0.7 and 0.7/0.4/0.8 plants with +-10 % mismatch
 it turned falls into narrow misses (26/40 against 23/40) but cost 2/20 nominal starts.
 
+Viability: on the upright linearisation without cart friction the pole ``(phi, theta_dot)``
+does not depend on the cart, so whether it can be kept in the success band for ever is a 2-D
+question with an exact answer, the min-max value ``J`` of
+:class:`~lsindy_cas.control.viability.ViabilityKernel` (``J <= 0``: viable), built from the
+model's own linearisation.  With ``viability=True`` (default) the plan's end pays
+``w * max(0, J + viability_margin * m*)^2`` and every predicted state ``viability_stage`` times
+the same with ``viability_stage_margin`` (``m*`` the best margin the plant allows, ``w =
+viability_weight * violation_weight``): the plan keeps the pole where it can still be held for
+ever, which gives the pole an infinite horizon (the lean a large kick needs before the catch).
+The kernel knows nothing of the cart, and stopping a drifting cart needs a lean the kernel may
+forbid, so ``w`` fades as ``(1 - cart_urgency)^2`` (the cart's stopping point by leaning, as a
+share of the usable track; ``viability_cart``).  A kernel robust over input gains 0.9-1.1 is
+empty for a 0.89 rad/s plant, so mismatch uses the model's own kernel (``viability_schedule``:
+one kernel per gain factor, picked by the online correction).  Measurements and the settings
+tried: docs/history/control.md.
+
 The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
 rate change over one push of the largest force from rest at the upright: a band narrower than
 one kick would make every reversing push a violation.
@@ -100,6 +116,25 @@ class SequenceBalancer(PulseBalancer):
         cart).
     escape_weight : float
         Factor on the terminal escape penalty (module docstring); 0 (default) leaves it out.
+    viability : bool
+        Penalise predicted pole states outside the pole's viability kernel
+        (:mod:`lsindy_cas.control.viability`, built from the model's upright linearisation),
+        held with a margin (module docstring, "viability").
+    viability_weight : float
+        Factor (times ``violation_weight``) on the squared kernel excess.
+    viability_margin : float
+        The margin asked for, as a share of the largest margin the kernel allows.
+    viability_gains : sequence of float
+        Input-gain factors the kernel must hold for (robust kernel); default the model's own.
+    viability_stage : float
+        Factor on the kernel term at every predicted state (0: the plan's end only).
+    viability_stage_margin : float
+        The margin asked for at every predicted state, as a share of the largest one.
+    viability_cart : bool
+        Fade the kernel term as the cart needs the lean to stop (:meth:`cart_urgency`).
+    viability_schedule : sequence of float, optional
+        Input-gain factors to build one kernel each for at construction; each plan uses the
+        one nearest to the online correction's estimate ``1 + gain`` of the pole rate.
     **options
         ``angle_band``, ``region``, ``max_lean``, ``cart_frequency``, ``cart_damping``,
         ``lean_weight``, ``push_weight``, ``mode_weight``, ``track_margin``, ``track_weight``,
@@ -109,6 +144,8 @@ class SequenceBalancer(PulseBalancer):
     ----------
     kick : float
         The model's pole-rate change (rad/s) over one push of the largest force at the upright.
+    kernel : ViabilityKernel or None
+        The pole's viability kernel the last plan used (``kernels``: all, by gain factor).
     proven : bool
         Whether the last plan was optimal over all sequences (no beam truncation).
     nodes : int
@@ -123,7 +160,10 @@ class SequenceBalancer(PulseBalancer):
                  horizon=16, max_frontier=500, rate_band=None, violation_weight=1e4,
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
                  terminal_weight=1.0, lean_weight=1e-6, centre_weight=10.0, centre_frequency=0.5,
-                 escape_weight=0.0, **options):
+                 escape_weight=0.0, viability=True, viability_weight=1.0,
+                 viability_margin=0.25, viability_gains=(1.0,), viability_stage=0.5,
+                 viability_schedule=None, viability_stage_margin=0.25, viability_cart=True,
+                 **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
@@ -187,6 +227,37 @@ class SequenceBalancer(PulseBalancer):
         T[1, 2 + self.ic], T[1, 2 + self.ip] = 1.0, -self.ratio
         self.P = self.P + self.centre_weight * T.T @ Pc @ T
         self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
+        # the pole's viability kernel on the model's upright linearisation (module docstring)
+        if not isinstance(viability, bool):
+            raise TypeError(f"viability must be True or False, got {viability!r}.")
+        self.viability_weight = check_real("viability_weight", viability_weight,
+                                           nonnegative=True)
+        self.viability_margin = check_real("viability_margin", viability_margin,
+                                           nonnegative=True)
+        self.viability_stage = check_real("viability_stage", viability_stage, nonnegative=True)
+        self.viability_stage_margin = check_real("viability_stage_margin",
+                                                 viability_stage_margin, nonnegative=True)
+        if not isinstance(viability_cart, bool):
+            raise TypeError(f"viability_cart must be True or False, got {viability_cart!r}.")
+        self.viability_cart = viability_cart
+        self._kernel_w = self.viability_weight * self.violation_weight
+        self.kernel, self.kernels = None, {}
+        if viability:
+            from .viability import pole_kernel
+            gains = np.asarray(viability_gains, dtype=float).ravel()
+            factors = (1.0,) if viability_schedule is None else viability_schedule
+            try:
+                factors = sorted({float(f) for f in factors})
+            except (TypeError, ValueError):
+                raise ValueError(f"viability_schedule must be positive gain factors, got "
+                                 f"{viability_schedule!r}.") from None
+            if not factors or min(factors) <= 0:
+                raise ValueError(f"viability_schedule must be positive gain factors, got "
+                                 f"{viability_schedule!r}.")
+            for f in factors:
+                self.kernels[f] = pole_kernel(ode, self.ic, self.ip, upright, self.dt,
+                                              self.levels, gains=f * gains)
+        self._use_kernel(1.0)
 
     def reset(self):
         """Forget the balancer's mode and its last plan (call between episodes)."""
@@ -194,21 +265,60 @@ class SequenceBalancer(PulseBalancer):
         self.plan = None
         self.proven, self.nodes = True, 0
 
-    def _stage(self, z, phi_ref):
-        """Non-negative stage cost of predicted error states ``z`` (n, 4)."""
+    def _stage(self, z, phi_ref, kernel=True):
+        """Non-negative stage cost of predicted error states ``z`` (n, 4) (``kernel=False``:
+        without the viability term, a lower bound the search prunes with first)."""
         comp = z[:, self._comps]
         over = np.abs(comp)
         over -= self._band
         np.maximum(over, 0.0, out=over)
         lean = z[:, self.ip] - phi_ref
-        return ((over * over) @ self._band_w + ((z @ self.Q) * z).sum(axis=1)
+        cost = ((over * over) @ self._band_w + ((z @ self.Q) * z).sum(axis=1)
                 + self._lean_dt * lean * lean)
+        if kernel and self.viability_stage > 0.0:
+            cost += self.viability_stage * self._viability(z, self._stage_target)
+        return cost
 
     def _terminal(self, z):
         """Terminal cost of error states ``z`` (n, 4): unstable mode, DARE value and escape."""
         s = z @ self.mode
         return (self.mode_weight * s * s + ((z @ self.P) * z).sum(axis=1)
-                + self._escape(z))
+                + self._escape(z) + self._viability(z, self._target))
+
+    def _use_kernel(self, factor):
+        """Plan with the kernel built for the input-gain factor nearest ``factor``; the plan
+        is held with ``viability_margin`` times the best margin that kernel allows."""
+        if not self.kernels:
+            self.kernel, self._target, self._stage_target = None, 0.0, 0.0
+            return
+        f = min(self.kernels, key=lambda k: abs(k - factor))
+        self.kernel = self.kernels[f]
+        best = max(self.kernel.max_margin, 0.0)
+        self._target = self.viability_margin * best
+        self._stage_target = self.viability_stage_margin * best
+
+    def _viability(self, z, target):
+        """Penalty on ending outside the pole's viability kernel held with the target margin:
+        ``viability_weight * violation_weight * max(0, J(phi, theta_dot) + target)^2`` with
+        ``J`` the kernel's normalised value and ``target = viability_margin * max_margin``."""
+        if self.kernel is None or self._kernel_w == 0.0:
+            return 0.0
+        over = self.kernel.value(z[:, self.ip], z[:, 2 + self.ip]) + target
+        np.maximum(over, 0.0, out=over)
+        return self._kernel_w * over * over
+
+    def cart_urgency(self, e):
+        """Where the cart would stop, leaning by ``brake_fraction * max_lean`` from now, as a
+        share of the usable track (0: at the centre and still, 1: at the track's margin).
+
+        Uses the cart's slow subsystem ``p = x - ratio * phi``, ``v0 = x_dot - ratio *
+        theta_dot`` (the pushes do not move it): ``|p + v0 |v0| / (2 a)|`` with ``a =
+        brake_fraction * |kappa| * max_lean``.
+        """
+        p = e[self.ic] - self.ratio * e[self.ip]
+        v0 = e[2 + self.ic] - self.ratio * e[2 + self.ip]
+        brake = self.brake_fraction * abs(self.kappa) * self.max_lean
+        return abs(p + v0 * abs(v0) / (2 * brake)) / (self.track_limit - self.track_margin)
 
     def _escape(self, z):
         """Penalty on the lean the pole must reach before a push can keep its rate in the band.
@@ -258,8 +368,14 @@ class SequenceBalancer(PulseBalancer):
         gain = np.zeros(4) if gain is None else np.asarray(gain, dtype=float)
         bias = np.zeros(4) if bias is None else np.asarray(bias, dtype=float)
         b = self.B * (1.0 + gain)
+        if len(self.kernels) > 1:
+            self._use_kernel(1.0 + gain[2 + self.ip])
         H, n_lev = self.horizon, self.levels.size
         phi_ref = self.reference_lean(e)
+        # the kernel term fades as the cart needs the lean to stop inside the track (the
+        # kernel knows only the pole): full weight at the centre, none at the track's margin
+        fade = max(0.0, 1.0 - self.cart_urgency(e)) ** 2 if self.viability_cart else 1.0
+        self._kernel_w = self.viability_weight * self.violation_weight * fade
         # incumbent: the previous plan shifted by one interval, and waiting throughout
         cands = [np.full(H, self.zero)]
         if self.plan is not None:
@@ -274,11 +390,17 @@ class SequenceBalancer(PulseBalancer):
         for k in range(H):
             nxt = states @ self.A.T + bias
             child = (nxt[:, None, :] + self._push_b(b)[None]).reshape(-1, 4)   # (M * L, 4)
-            c = np.repeat(costs, n_lev) + np.tile(push_cost, costs.size) + self._stage(child, phi_ref)
+            c = (np.repeat(costs, n_lev) + np.tile(push_cost, costs.size)
+                 + self._stage(child, phi_ref, kernel=False))
             if k == H - 1:
                 c += self._terminal(child)
             nodes += c.size
             keep = np.flatnonzero(c < best)
+            if self.viability_stage > 0.0 and self._kernel_w > 0.0 and keep.size:
+                # the kernel term only for the children the rest of the cost left alive
+                c[keep] += self.viability_stage * self._viability(child[keep],
+                                                                  self._stage_target)
+                keep = keep[c[keep] < best]
             if keep.size == 0:
                 break
             if k == H - 1:
