@@ -23,12 +23,13 @@ def model():
 
 
 @needs_fatrop
-def test_fatrop_is_the_default_robust_solver_and_recovers_the_sqp_optimum(model):
-    """The default cold/recovery solver is fatrop; started from a converged SQP plan it
-    converges to a plan as cheap, with multipliers of the same sign: the shooting gaps' sign
-    convention is translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
-    ctrl = SwingUpMPC(model)
-    assert default_robust_solver() == "fatrop"
+def test_fatrop_recovers_the_sqp_optimum(model):
+    """fatrop (opt-in: it can hang mid-solve, so IPOPT is the default) started from a converged
+    SQP plan converges to a plan as cheap, with multipliers of the same sign: the shooting gaps'
+    sign convention is translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
+    assert default_robust_solver() == "ipopt"
+    assert SwingUpMPC(model).cold == "ipopt" and SwingUpMPC(model).recovery == "ipopt"
+    ctrl = SwingUpMPC(model, cold="fatrop", recovery="fatrop")
     assert ctrl.cold == "fatrop" and ctrl.recovery == "fatrop"
     nlp = ctrl.nlp
     cost = ca.Function("f", [nlp._nlp["x"], nlp._nlp["p"]], [nlp._nlp["f"]])
@@ -78,7 +79,7 @@ def test_every_step_records_what_it_ran_and_slow_steps_count_them(model):
 @needs_fatrop
 def test_a_guess_where_the_model_does_not_evaluate_is_refused_before_fatrop(model):
     """fatrop loops without end on NaN evaluations: the solve is a failure without calling it."""
-    ctrl = SwingUpMPC(model)
+    ctrl = SwingUpMPC(model, cold="fatrop", recovery="fatrop")
     nlp = ctrl.nlp
     x = np.array([0.0, 2.5, 0.0, 0.5])
     z, lam_g, lam_x = ctrl._cold_start(x)
