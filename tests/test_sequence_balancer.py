@@ -39,19 +39,25 @@ def test_plant_quantities_come_from_the_model(corner):
     assert type(SwingUpMPC(systems.cart_pendulum()).balancer).__name__ == "PulseBalancer"
 
 
-def test_search_without_truncation_is_the_exhaustive_optimum(corner):
-    system, ctrl = corner
-    b = SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
-                         pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05, horizon=7,
-                         max_frontier=10**6)
-    every = np.array(list(itertools.product(range(3), repeat=7)))
-    for e in ([0.3, 0.02, 0.2, -0.4], [-1.0, -0.05, 0.5, 0.3], [0.0, 0.0, 0.0, 0.45]):
+def assert_exhaustive_optimum(b, errors, horizon=7):
+    """The untruncated search of balancer ``b`` returns the best of all 3**horizon sequences."""
+    every = np.array(list(itertools.product(range(3), repeat=horizon)))
+    for e in errors:
         e = np.array(e)
         seq, cost = b.search(e)
         costs = b._rollout_cost(e, every, b.B, np.zeros(4), b.reference_lean(e))
         assert b.proven
         assert cost == pytest.approx(costs.min(), rel=1e-9)
         assert np.array_equal(seq, every[np.argmin(costs)])
+
+
+def test_search_without_truncation_is_the_exhaustive_optimum(corner):
+    system, ctrl = corner
+    b = SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
+                         pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05, horizon=7,
+                         max_frontier=10**6)
+    assert_exhaustive_optimum(b, ([0.3, 0.02, 0.2, -0.4], [-1.0, -0.05, 0.5, 0.3],
+                                  [0.0, 0.0, 0.0, 0.45]))
 
 
 @pytest.mark.parametrize("x0", [[0.0, np.pi + 0.03, 0.0, 0.0], [0.8, np.pi + 0.03, 0.4, 0.0]])

@@ -8,6 +8,7 @@ from scipy.linalg import expm
 
 from lsindy_cas import systems
 from lsindy_cas.control.viability import ViabilityKernel, pole_kernel, pole_subsystem
+from test_sequence_balancer import assert_exhaustive_optimum
 
 FORCES = (-10.0, 0.0, 10.0)
 G = 9.81
@@ -183,14 +184,8 @@ def test_search_with_the_kernel_is_still_the_exhaustive_optimum():
     b = SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
                          pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05, horizon=7,
                          max_frontier=10**6, viability=True)
-    every = np.array(list(itertools.product(range(3), repeat=7)))
-    for e in ([0.3, 0.02, 0.2, -0.4], [0.0, 0.06, 0.0, 0.0], [0.0, 0.0, 0.0, 0.45]):
-        e = np.array(e)
-        seq, cost = b.search(e)
-        costs = b._rollout_cost(e, every, b.B, np.zeros(4), b.reference_lean(e))
-        assert b.proven
-        assert cost == pytest.approx(costs.min(), rel=1e-9)
-        assert np.array_equal(seq, every[np.argmin(costs)])
+    assert_exhaustive_optimum(b, ([0.3, 0.02, 0.2, -0.4], [0.0, 0.06, 0.0, 0.0],
+                                  [0.0, 0.0, 0.0, 0.45]))
     # the kernel term fades out as the cart needs the lean to stop: none at the track margin
     assert b.cart_urgency(np.zeros(4)) == 0.0
     assert b.cart_urgency(np.array([1.75, 0.0, 0.0, 0.0])) == pytest.approx(1.0)
