@@ -139,3 +139,13 @@ def test_scouts_get_the_scout_budget_and_the_chosen_k_the_whole_limit(rng, monke
     assert limits[0] == selection.SCOUT_LIMIT and limits[-1] == 30.0
     assert auto.search.method == "bnb" and auto.search.proven
     assert not auto.steps[0].search.proven or auto.steps[0].k == auto.k
+
+
+def test_the_refusal_counts_the_supports_the_structure_rules_out(rng):
+    """When every support is ruled out before any fit, the error says how many were, not only
+    the few fitted for their reasons."""
+    A, b, hess = _problem(rng)
+    with pytest.raises(ValueError, match=r"among the \d+ best supports \(and [\d,]+ more that "
+                                         r"the rules exclude before any fit\)"):
+        best_subset(A, b, 3, admissible=lambda S, c: (False, "structure"),
+                    structure=([], [np.array([], dtype=np.int64)]))

@@ -248,8 +248,10 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     v = visit(A, b, supports, scores, degenerate, admissible=admissible, scale_system=scale_system,
               max_visits=max_visits, n_report=n_report, structure=structure, kinetic=kinetic)
     if v.winner is None:
+        ruled = (f" (and {v.n_ruled:,} more that the rules exclude before any fit)"
+                 if v.n_ruled else "")
         raise ValueError(f"no physically admissible {k}-term model among the {v.n_examined} best "
-                         "supports; try another n_terms, prior or library (reasons: "
+                         f"supports{ruled}; try another n_terms, prior or library (reasons: "
                          + "; ".join(sorted({c.reason for c in v.candidates if c.reason})) + ")")
     return v.result(supports, scores, degenerate)
 
@@ -263,6 +265,7 @@ class Visit:
     candidates: list
     n_examined: int
     n_reducible: int
+    n_ruled: int = 0          # supports the structure rules out before any fit (not visited)
 
     def result(self, supports, scores, degenerate) -> SearchResult:
         w = self.winner
@@ -315,11 +318,13 @@ def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.
     stopping point, fewer fits.
     """
     keys = np.where(degenerate, np.inf, scores)
+    n_ruled = 0
     if structure is not None:          # ruled out before any fit: never visited (docstring)
         ruled = np.flatnonzero(~degenerate & structurally_inadmissible(structure, supports))
         if len(ruled) > n_report:      # but the best n_report of them, for their reasons
             best = np.argpartition(keys[ruled], n_report)[:n_report]
             keys[np.delete(ruled, best)] = np.inf
+            n_ruled = len(ruled) - n_report
     n_ok = int(np.isfinite(keys).sum())
     order = _best_first(keys, min(n_ok, 8192))
     G, c = normal_equations(A, b)
@@ -374,7 +379,7 @@ def visit(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray, scores: np.
         order = _best_first(keys, min(n_ok, pos + n_report))
     for idx in order[pos:pos + n_report]:
         candidates.append(Candidate(tuple(int(j) for j in supports[idx]), float(scores[idx])))
-    return Visit(winner, null_dim, candidates, pos, n_reducible)
+    return Visit(winner, null_dim, candidates, pos, n_reducible, n_ruled)
 
 
 def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndarray | None = None,
