@@ -85,8 +85,72 @@ def test_a_guess_where_the_model_does_not_evaluate_is_refused_before_fatrop(mode
     z, lam_g, lam_x = ctrl._cold_start(x)
     z[nlp._ix[3, 0]] = np.nan
     outcome, z_out, _, _, iters = nlp.solve(x, z, lam_g, lam_x, kind="recover")
-    assert (outcome, nlp.last_status, iters) == ("failed", "nonfinite_guess", 0)
+    assert (outcome, nlp.last_status, iters) == ("failed", "unusable_guess", 0)
     assert z_out is z
+
+
+class _ClaimsSuccess:
+    """A stand-in solver that reports success and returns ``z`` whatever it is asked."""
+
+    def __init__(self, nlp, z, x):
+        self.z, self.g = z, np.asarray(nlp._fg(z, x)[1]).ravel()
+
+    def __call__(self, **kw):
+        return {"x": self.z, "g": self.g, "lam_g": kw["lam_g0"], "lam_x": kw["lam_x0"]}
+
+    def stats(self):
+        return {"return_status": "Solve_Succeeded", "success": True, "iter_count": 0}
+
+
+def _diverged(ctrl, z):
+    """``z`` with the cart speed of every predicted state at 1e8 m/s (shooting gaps ~1e8)."""
+    bad = z.copy()
+    bad[ctrl.nlp._ix[:, 2]] = 1e8
+    return bad
+
+
+def test_a_claimed_success_that_violates_the_constraints_is_a_failure(model):
+    """sqpmethod once reported "Solve_Succeeded" for a diverged plan (gaps of 1e82): the plan
+    was applied, shifted into the warm start, and fatrop hung on it at the next recovery."""
+    ctrl = SwingUpMPC(model)
+    nlp = ctrl.nlp
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    z, lam_g, lam_x = ctrl._cold_start(x)
+    nlp.solvers["warm"] = _ClaimsSuccess(nlp, _diverged(ctrl, z), x)
+    outcome, _, _, _, _ = nlp.solve(x, z, lam_g, lam_x, kind="warm")
+    assert outcome == "failed" and nlp.last_status == "Solve_Succeeded (constraints violated)"
+    assert nlp.last_violation > 1e7
+    # a claim with the constraints met to tol stands (the converged plan itself)
+    nlp.solvers["warm"] = _ClaimsSuccess(nlp, *ctrl._cold_start(x)[:1], x)
+    nlp.solvers["warm"].g[:] = np.clip(0.0, nlp.lbg, nlp.ubg)
+    assert nlp.solve(x, z, lam_g, lam_x, kind="warm")[0] == "converged"
+    # in the loop: the step falls back on its plan and the next one is a recovery
+    ctrl(x)
+    applied = ctrl.plan_["states"].copy()
+    ctrl.nlp.solvers["warm"] = _ClaimsSuccess(nlp, _diverged(ctrl, ctrl._warm[0]), x)
+    ctrl(x)
+    assert ctrl.stats.n_failures == 1 and not ctrl.plan_["success"]
+    assert np.abs(ctrl.plan_["states"]).max() < 100 and np.abs(applied).max() < 100
+    assert ctrl._failed == 1 and np.abs(ctrl._warm[0]).max() < 100
+
+
+@needs_fatrop
+def test_a_diverged_plan_is_not_handed_to_fatrop_the_step_starts_over(model):
+    """fatrop loops without end from a guess whose shooting gaps are absurd (1e82 in the
+    family benchmark); such a guess is refused and the step solves from a rolled-out guess."""
+    ctrl = SwingUpMPC(model, cold="fatrop", recovery="fatrop")
+    nlp = ctrl.nlp
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    z, lam_g, lam_x = ctrl._cold_start(x)
+    bad = _diverged(ctrl, z)
+    outcome, z_out, _, _, iters = nlp.solve(x, bad, lam_g, lam_x, kind="recover")
+    assert (outcome, nlp.last_status, iters) == ("failed", "unusable_guess", 0)
+    assert z_out is bad
+    ctrl(x)
+    ctrl._warm, ctrl._failed = (bad, lam_g, lam_x), 1  # a recovery from the diverged plan
+    force = ctrl(x)
+    assert force in ctrl.levels and ctrl.stats.solve_kinds[-1] == "cold"
+    assert ctrl.plan_["success"] and np.abs(ctrl.plan_["states"]).max() < 100
 
 
 @needs_gcc

@@ -347,13 +347,12 @@ class DiscreteInputMPC:
             zf, lgf, lxf = z0, lam_g0, lam_x0
         solver_kind = "warm" if kind == "cold" and self.cold == "warm" else kind
         t0, c0 = time.perf_counter(), time.thread_time()
-        try:
-            outcome, z, lam_g, lam_x, iters = self.nlp.solve(x, z0, lam_g0, lam_x0,
-                                                             kind=solver_kind)
-            status = self.nlp.last_status
-        except RuntimeError:  # e.g. NaN in a function evaluation of a bad model
-            outcome, z, lam_g, lam_x, iters = "failed", z0, lam_g0, lam_x0, -1
-            status = "exception"
+        outcome, z, lam_g, lam_x, iters, status = self._solve(x, z0, lam_g0, lam_x0, solver_kind)
+        if status == "unusable_guess" and kind != "cold":  # refused for fatrop: start over
+            kind, solver_kind = "cold", "warm" if self.cold == "warm" else "cold"
+            z0, lam_g0, lam_x0 = zf, lgf, lxf = self._cold_start(x)
+            outcome, z, lam_g, lam_x, iters, status = self._solve(x, z0, lam_g0, lam_x0,
+                                                                  solver_kind)
         if outcome == "inexact":
             self.stats.n_inexact += 1
         ok = outcome == "converged" or (outcome == "inexact" and self.accept_inexact)
@@ -398,6 +397,14 @@ class DiscreteInputMPC:
             z, lam_g, lam_x = zc, lgc, lxc
         self._warm = self._shifted((z, lam_g, lam_x))
         return self._applied(x, index, t_start, c_start, kind)
+
+    def _solve(self, x, z0, lam_g0, lam_x0, kind):
+        """:meth:`MultipleShootingNLP.solve` and its status (``"exception"`` when the solver
+        raised, e.g. NaN in a function evaluation of a bad model)."""
+        try:
+            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind), self.nlp.last_status)
+        except RuntimeError:
+            return "failed", z0, lam_g0, lam_x0, -1, "exception"
 
     def _applied(self, x, index, t_start, c_start, kind):
         """Record the step (state and force for the online correction, step times, ``kind``
