@@ -2,6 +2,7 @@
 the per-step record of what each step ran, and the compiled (JIT) NLP functions."""
 
 import shutil
+import threading
 
 import casadi as ca
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 
 from lsindy_cas.control import compiled
 from lsindy_cas.control.shooting import default_robust_solver
+from lsindy_cas.control.watchdog import Watchdog
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import identify_cart_pendulum
 
@@ -151,6 +153,42 @@ def test_a_diverged_plan_is_not_handed_to_fatrop_the_step_starts_over(model):
     force = ctrl(x)
     assert force in ctrl.levels and ctrl.stats.solve_kinds[-1] == "cold"
     assert ctrl.plan_["success"] and np.abs(ctrl.plan_["states"]).max() < 100
+
+
+def test_watchdog_returns_raises_and_abandons_a_call_past_its_limit():
+    dog = Watchdog(0.2)
+    assert dog.call(lambda a, b: a + b, a=1, b=2) == (True, 3)
+    with pytest.raises(KeyError):
+        dog.call(lambda: {}["missing"])
+    release = threading.Event()
+    assert dog.call(release.wait, timeout=30) == (False, None)  # blocked: abandoned
+    assert dog.n_abandoned == 1
+    assert dog.call(lambda: "new worker") == (True, "new worker")
+    release.set()  # the abandoned call returns; its result is dropped
+    with pytest.raises(ValueError, match="limit"):
+        Watchdog(0)
+
+
+@needs_fatrop
+def test_a_fatrop_solve_that_does_not_return_is_abandoned_and_ipopt_takes_over(model):
+    """fatrop has looped without end inside a solve; a solve past the watchdog's limit is a
+    failure, with a warning, and the controller's later cold starts and recoveries run IPOPT."""
+    ctrl = SwingUpMPC(model)
+    nlp = ctrl.nlp
+    assert nlp._plugin["recover"] == "fatrop"
+    x = np.array([0.0, 2.5, 0.0, 0.5])
+    z, lam_g, lam_x = ctrl._cold_start(x)
+    release = threading.Event()
+    nlp.solvers["recover"] = lambda **kw: release.wait(30)  # a solve that does not return
+    nlp.watchdog = Watchdog(0.2)
+    with pytest.warns(RuntimeWarning, match="abandoned"):
+        outcome, z_out, lam_g_out, _, iters = nlp.solve(x, z, lam_g, lam_x, kind="recover")
+    release.set()
+    assert (outcome, nlp.last_status, iters) == ("failed", "abandoned", -1)
+    assert z_out is z and np.array_equal(lam_g_out, lam_g)
+    assert nlp._plugin == {"warm": "sqp", "cold": "ipopt", "recover": "ipopt"}
+    assert nlp.solve(x, z, lam_g, lam_x, kind="cold")[0] == "converged"
+    assert nlp.last_status == "Solve_Succeeded"  # IPOPT's status
 
 
 @needs_gcc

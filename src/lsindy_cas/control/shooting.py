@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 
 from .compiled import check_compiler, compiled_function, compiled_nlpsol
+from .watchdog import Watchdog
 
 __all__ = ["ROBUST_SOLVERS", "SOLVERS", "MultipleShootingNLP", "check_solver_available",
            "default_robust_solver"]
@@ -28,6 +29,9 @@ ROBUST_SOLVERS = ("fatrop", "ipopt")
 CONVERGED_VIOLATION = 10.0
 #: largest shooting gap (state units) of a guess handed to fatrop (see ``_usable_guess``)
 GUESS_GAP = 1e6
+#: seconds a fatrop solve may take before it is abandoned (see ``MultipleShootingNLP.solve``);
+#: the slowest seen: 0.34 s (300 iterations from a spinning pole, not compiled, loaded machine)
+WATCHDOG_SECONDS = 5.0
 
 
 def default_robust_solver():
@@ -41,7 +45,11 @@ def default_robust_solver():
     loops without end from such a guess where IPOPT stops at once.  Now a success claim with the
     constraints violated is a failure (:meth:`MultipleShootingNLP.solve`) and fatrop is never
     handed a guess with absurd gaps or NaN evaluations; the same 120 family episodes ran
-    without a hang.  ``cold="ipopt", recovery="ipopt"`` chooses IPOPT.
+    without a hang.  The hang also depends on fatrop's state from earlier solves (the same guess
+    handed to a new solver converged), so every fatrop solve also runs under a
+    :class:`~lsindy_cas.control.watchdog.Watchdog`: past ``WATCHDOG_SECONDS`` it is abandoned
+    and the controller switches to IPOPT (on the recorded hang: the episode went on after
+    5 s).  ``cold="ipopt", recovery="ipopt"`` chooses IPOPT.
     """
     return "fatrop" if ca.has_nlpsol("fatrop") else "ipopt"
 
@@ -201,6 +209,7 @@ class MultipleShootingNLP:
         self.solvers = {"warm": self.solver}
         self._flip = {"warm": False}  # whether a solver sees the gaps with the other sign
         self._plugin = {"warm": solver}
+        self.watchdog = Watchdog(WATCHDOG_SECONDS)  # for the fatrop solves
         # fatrop loops without end from a guess where a function evaluation fails (NaN) or
         # that is far from dynamically consistent: such a guess is refused (see solve)
         self._fg = ca.Function("fg", [nlp["x"], p], [nlp["f"], nlp["g"]])
@@ -219,10 +228,10 @@ class MultipleShootingNLP:
             self.solvers[kind], self._flip[kind] = robust[name]
             self._plugin[kind] = name
 
-    def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol):
+    def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol, jit=None):
         n, N = self.n_state, self.horizon
         common = {"expand": True, "print_time": False, "error_on_fail": False}
-        nlpsol = compiled_nlpsol if self.jit else ca.nlpsol
+        nlpsol = compiled_nlpsol if (self.jit if jit is None else jit) else ca.nlpsol
         if solver == "ipopt":
             opts = dict(common, ipopt={
                 "print_level": 0, "sb": "yes", "max_iter": max_iter, "tol": tol,
@@ -308,8 +317,16 @@ class MultipleShootingNLP:
         flip = self._flip[kind]
         if flip:  # the gap rows' multipliers change sign with the rows
             lam_g0 = self._flip_gaps(lam_g0)
-        res = solver(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg,
-                     ubg=self.ubg, lam_g0=lam_g0, lam_x0=lam_x0)
+        args = dict(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg,
+                    lam_g0=lam_g0, lam_x0=lam_x0)
+        if self._plugin[kind] == "fatrop":  # under a time limit: it has looped without end
+            finished, res = self.watchdog.call(solver, **args)
+            if not finished:
+                self._abandon_fatrop()
+                self.last_status, self.last_violation = "abandoned", np.inf
+                return "failed", z0, self._flip_gaps(lam_g0) if flip else lam_g0, lam_x0, -1
+        else:
+            res = solver(**args)
         st = solver.stats()
         z = np.asarray(res["x"]).ravel()
         g = np.asarray(res["g"]).ravel()
@@ -357,6 +374,25 @@ class MultipleShootingNLP:
         if not (np.isfinite(float(f)) and np.all(np.isfinite(g))):
             return False
         return bool(np.max(np.abs(g[self._gap_rows]), initial=0.0) <= GUESS_GAP)
+
+    def _abandon_fatrop(self):
+        """A fatrop solve passed :attr:`watchdog`'s limit (its thread is left behind): every
+        later solve of this NLP that would run fatrop runs IPOPT (not compiled, so that it
+        builds in a moment), with a warning."""
+        import warnings
+        ipopt = {}
+        for kind, plugin in self._plugin.items():
+            if plugin == "fatrop":
+                iters = self.max_iters[kind]
+                if iters not in ipopt:
+                    ipopt[iters] = self._make_solver(self._nlp, "ipopt", self._nu,
+                                                     self._ng_path, iters, self._tol, jit=False)
+                self.solvers[kind], self._flip[kind] = ipopt[iters], False
+                self._plugin[kind] = "ipopt"
+        self.solver = self.solvers["warm"]
+        warnings.warn(f"a fatrop solve took over {self.watchdog.limit:g} s and was abandoned "
+                      "(its thread may keep a core busy); this controller uses IPOPT from now "
+                      "on.", RuntimeWarning, stacklevel=5)
 
     def _flip_gaps(self, lam_g):
         """A copy of ``lam_g`` with the shooting gaps' multipliers negated."""
