@@ -248,9 +248,14 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
         model, trajs = identify_cart_pendulum()
         log(f"identified model:\n{model}")
     opts = dict(controller_options or {})
+    if opts.get("jit"):
+        log("building the controller with compiled NLP functions (gcc; the first build for a "
+            "model takes a minute or two, later ones load from $LSINDY_CACHE_DIR) ...")
     t0 = time.perf_counter()
     ctrl = SwingUpMPC(model, **opts)
     build_s = time.perf_counter() - t0
+    if opts.get("jit"):
+        log(f"controller built in {build_s:.1f} s")
     starts = random_starts(episodes, seed)
     report = {"controller": {"solver": ctrl.solver, "relaxation": ctrl.relaxation,
                              "rounding": ctrl.rounding, "dt": ctrl.dt, "horizon": ctrl.horizon,
