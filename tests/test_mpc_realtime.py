@@ -26,12 +26,12 @@ def model():
 
 @needs_fatrop
 def test_fatrop_recovers_the_sqp_optimum(model):
-    """fatrop (the default of cold starts and recoveries where CasADi has it) started from a
-    converged SQP plan converges to a plan as cheap, with multipliers of the same sign: the
-    shooting gaps' sign convention is translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
-    assert default_robust_solver() == "fatrop"
-    assert SwingUpMPC(model).cold == "fatrop" and SwingUpMPC(model).recovery == "fatrop"
-    ctrl = SwingUpMPC(model)
+    """fatrop (opt-in; IPOPT is the default) started from a converged SQP plan converges to a
+    plan as cheap, with multipliers of the same sign: the shooting gaps' sign convention is
+    translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
+    assert default_robust_solver() == "ipopt"
+    assert SwingUpMPC(model).cold == "ipopt" and SwingUpMPC(model).recovery == "ipopt"
+    ctrl = SwingUpMPC(model, cold="fatrop", recovery="fatrop")
     assert ctrl.cold == "fatrop" and ctrl.recovery == "fatrop"
     nlp = ctrl.nlp
     cost = ca.Function("f", [nlp._nlp["x"], nlp._nlp["p"]], [nlp._nlp["f"]])
@@ -173,7 +173,7 @@ def test_watchdog_returns_raises_and_abandons_a_call_past_its_limit():
 def test_a_fatrop_solve_that_does_not_return_is_abandoned_and_ipopt_takes_over(model):
     """fatrop has looped without end inside a solve; a solve past the watchdog's limit is a
     failure, with a warning, and the controller's later cold starts and recoveries run IPOPT."""
-    ctrl = SwingUpMPC(model)
+    ctrl = SwingUpMPC(model, cold="fatrop", recovery="fatrop")
     nlp = ctrl.nlp
     assert nlp._plugin["recover"] == "fatrop"
     x = np.array([0.0, 2.5, 0.0, 0.5])

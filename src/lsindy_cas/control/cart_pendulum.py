@@ -11,7 +11,7 @@ level, summing to 1), by SQP with HPIPM QPs, then picks one admissible level (by
 lookahead over all discrete sequences of a few intervals, scored against the relaxed plan's
 cost-to-go; or sum-up rounding carried across steps; or plain rounding).  A failed solve falls
 back to the shifted previous plan, is counted in ``stats``, and the next step re-solves with
-fatrop (IPOPT if CasADi lacks it).  Near the upright the level comes instead from a pulse balancer
+IPOPT (fatrop on request).  Near the upright the level comes instead from a pulse balancer
 (:mod:`lsindy_cas.control.balancer`): one 10 N push changes the pole rate by as much as the
 success band is wide, so there the controller plans with the pushes themselves, enumerating
 push sequences on the model linearised at the upright.

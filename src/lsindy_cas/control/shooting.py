@@ -35,23 +35,22 @@ WATCHDOG_SECONDS = 5.0
 
 
 def default_robust_solver():
-    """The default solver of cold starts and recoveries: ``"fatrop"`` if this CasADi has it,
-    else ``"ipopt"``.
+    """``"ipopt"``: the default solver of cold starts and recoveries.
 
-    fatrop exploits the stage structure and reaches IPOPT's optima about three times faster.
-    It was opt-in for a while because it hung (inside its linear solver, for minutes) on two
-    family-benchmark episodes.  The cause was ours: sqpmethod had reported success for a
-    diverged plan (shooting gaps of 1e82), the plan was shifted into the warm start, and fatrop
-    loops without end from such a guess where IPOPT stops at once.  Now a success claim with the
-    constraints violated is a failure (:meth:`MultipleShootingNLP.solve`) and fatrop is never
-    handed a guess with absurd gaps or NaN evaluations; the same 120 family episodes ran
-    without a hang.  The hang also depends on fatrop's state from earlier solves (the same guess
-    handed to a new solver converged), so every fatrop solve also runs under a
-    :class:`~lsindy_cas.control.watchdog.Watchdog`: past ``WATCHDOG_SECONDS`` it is abandoned
-    and the controller switches to IPOPT (on the recorded hang: the episode went on after
-    5 s).  ``cold="ipopt", recovery="ipopt"`` chooses IPOPT.
+    fatrop (``cold="fatrop"``, ``recovery="fatrop"``) reaches the same optima about three times
+    faster, and with ``jit=True`` it is the configuration whose step p99 meets 20 ms.  It hung
+    (inside its linear solver, for minutes) on two family-benchmark episodes; the cause was
+    ours -- sqpmethod had reported success for a diverged plan (shooting gaps of 1e82) that was
+    shifted into the warm start -- and is fixed (a success claim with the constraints violated
+    is a failure, and fatrop is never handed a guess with absurd gaps or NaN evaluations); since
+    the hang also depends on fatrop's state from earlier solves (the same guess handed to a new
+    solver converged), every fatrop solve also runs under a
+    :class:`~lsindy_cas.control.watchdog.Watchdog` (abandoned after ``WATCHDOG_SECONDS``, IPOPT
+    from then on).  It stays opt-in for another reason: on the paper plant's mismatched starts
+    of seeds 1-3 it lost 2 of 60 (the swing-up passed the top with the cart too fast, several
+    times), where IPOPT lost none (issue 16; README, "Step time").
     """
-    return "fatrop" if ca.has_nlpsol("fatrop") else "ipopt"
+    return "ipopt"
 
 
 def check_solver_available(name, value):
