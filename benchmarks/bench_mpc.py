@@ -11,9 +11,10 @@ noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
     python benchmarks/bench_mpc.py                 # everything (about 8 minutes on 2 cores)
     python benchmarks/bench_mpc.py --episodes 3    # quick look
     python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+jit,\
-sqp+ipopt-recovery --no-robustness --out /tmp/rt  # the real-time comparison (issue 16)
+sqp+fatrop,sqp+fatrop+jit --no-robustness --out /tmp/rt  # the real-time comparison (issue 16)
 
-``sqp+jit`` compiles the NLP's functions with gcc the first time (a minute or two; cached in
+``sqp+jit`` and ``sqp+fatrop+jit`` compile the NLP's functions with gcc the first time (a
+minute or two; cached in
 ``$LSINDY_CACHE_DIR``, see ``lsindy_cas/control/compiled.py``): run it once before timing, or
 read its ``build_s``.  ``slow_steps`` in the JSON counts the steps over 20 ms by what they ran
 (cold start, recovery, warm SQP, balancer): the p99 of 4,000 steps is the 40th slowest.
@@ -64,10 +65,16 @@ CONFIGS = {
                      "SQP cold start, failed iterates continued, IPOPT after 3 failures"),
     "sqp+ipopt-recovery": ({"solver": "sqp", "relaxation": "continuous",
                             "rounding": "lookahead", "cold": "ipopt", "recovery": "ipopt"},
-                           "cold starts and recoveries by IPOPT (the default before issue 16 "
-                           "part 3; now fatrop)"),
+                           "cold starts and recoveries by IPOPT (the default, explicitly)"),
     "sqp+jit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                  "jit": True}, "default with the NLP functions compiled (gcc, cached)"),
+    "sqp+fatrop": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                    "cold": "fatrop", "recovery": "fatrop"},
+                   "cold starts and recoveries by fatrop (opt-in, under a watchdog)"),
+    "sqp+fatrop+jit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                        "cold": "fatrop", "recovery": "fatrop", "jit": True},
+                       "fatrop cold starts and recoveries, NLP functions compiled: the "
+                       "real-time configuration"),
     "sqp+continuous+lookahead": ({"solver": "sqp", "relaxation": "continuous",
                                   "rounding": "lookahead", "balance": False},
                                  "lookahead everywhere (no balancer)"),
