@@ -26,11 +26,11 @@ def model():
 
 @needs_fatrop
 def test_fatrop_recovers_the_sqp_optimum(model):
-    """fatrop (opt-in; IPOPT is the default) started from a converged SQP plan converges to a
-    plan as cheap, with multipliers of the same sign: the shooting gaps' sign convention is
-    translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
-    assert default_robust_solver() == "ipopt"
-    assert SwingUpMPC(model).cold == "ipopt" and SwingUpMPC(model).recovery == "ipopt"
+    """fatrop (the default of cold starts and recoveries where CasADi has it) started from a
+    converged SQP plan converges to a plan as cheap, with multipliers of the same sign: the
+    shooting gaps' sign convention is translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
+    assert default_robust_solver() == "fatrop"
+    assert SwingUpMPC(model).cold == "fatrop" and SwingUpMPC(model).recovery == "fatrop"
     ctrl = SwingUpMPC(model, cold="fatrop", recovery="fatrop")
     assert ctrl.cold == "fatrop" and ctrl.recovery == "fatrop"
     nlp = ctrl.nlp

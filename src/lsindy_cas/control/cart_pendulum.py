@@ -11,7 +11,7 @@ level, summing to 1), by SQP with HPIPM QPs, then picks one admissible level (by
 lookahead over all discrete sequences of a few intervals, scored against the relaxed plan's
 cost-to-go; or sum-up rounding carried across steps; or plain rounding).  A failed solve falls
 back to the shifted previous plan, is counted in ``stats``, and the next step re-solves with
-IPOPT (fatrop on request).  Near the upright the level comes instead from a pulse balancer
+fatrop (IPOPT without it).  Near the upright the level comes instead from a pulse balancer
 (:mod:`lsindy_cas.control.balancer`): one 10 N push changes the pole rate by as much as the
 success band is wide, so there the controller plans with the pushes themselves, enumerating
 push sequences on the model linearised at the upright.
@@ -132,8 +132,12 @@ class SwingUpMPC(DiscreteInputMPC):
         Name of the cart coordinate, overriding the model's ``actuated_``.
     weights : dict, optional
         Cost weights ``{"angle", "position", "velocity", "rate", "terminal", "input",
-        "rate_band", "rate_band_weight"}`` (see :attr:`default_weights`); the last
-        two shape the lookahead's penalty on pole rates above ``rate_band`` near the top.
+        "rate_band", "rate_band_weight", "top_rate", "top_rate_band"}`` (see
+        :attr:`default_weights`); ``rate_band`` and ``rate_band_weight`` shape the lookahead's
+        penalty on pole rates above ``rate_band`` near the top; ``top_rate`` weighs, in the
+        NLP's stage and terminal costs, the pole rate beyond ``top_rate_band`` (rad/s) scaled
+        by ``cos^4`` of half the angle from the upright, so that plans arrive at the top slowly
+        enough to be caught on a plant 10 % off the model (``top_rate=0`` switches it off).
     balance : bool or dict
         Near the upright, choose the force with :class:`~lsindy_cas.control.balancer.PulseBalancer`
         (an enumerated MPC over the push sequences themselves, on the model linearised at the
@@ -176,7 +180,8 @@ class SwingUpMPC(DiscreteInputMPC):
 
     default_weights = {"angle": 10.0, "position": 1.0, "velocity": 0.1, "rate": 0.1,
                        "terminal": 10.0, "input": 1e-2,
-                       "rate_band": 0.35, "rate_band_weight": 1e3}
+                       "rate_band": 0.35, "rate_band_weight": 1e3,
+                       "top_rate": 1.0, "top_rate_band": 1.5}
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
@@ -219,9 +224,14 @@ class SwingUpMPC(DiscreteInputMPC):
         x = ca.SX.sym("x", 4)
         # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
         half = (x[ip] - self.upright) / 2
+        # arriving at the top slowly: the pole rate beyond a band, weighted by cos^4(phi / 2)
+        # (1 at the top, 0 at the bottom); a plan that comes up fast is caught only if the
+        # model is right, and a plant 10 % off overshoots and spins around (issue 16)
+        top = ca.fmax(ca.fabs(x[2 + ip]) * ca.cos(half) ** 4 - w["top_rate_band"], 0)
         r = ca.vertcat(ca.sqrt(2 * w["angle"]) * ca.sin(half),
                        ca.sqrt(w["position"]) * x[ic] / self.track_limit,
-                       ca.sqrt(w["velocity"]) * x[2 + ic], ca.sqrt(w["rate"]) * x[2 + ip])
+                       ca.sqrt(w["velocity"]) * x[2 + ic], ca.sqrt(w["rate"]) * x[2 + ip],
+                       ca.sqrt(w["top_rate"]) * top)
         lb = np.full(4, -np.inf)
         ub = np.full(4, np.inf)
         lb[ic], ub[ic] = -(self.track_limit - track_margin), self.track_limit - track_margin

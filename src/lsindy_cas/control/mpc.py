@@ -105,10 +105,9 @@ class DiscreteInputMPC:
         and an IPOPT recovery solve runs only after ``recover_after`` failures in a row,
         from the last applied plan; ``"fatrop"`` and ``"ipopt"`` discard the failed iterate and
         re-solve with that interior-point method from the shifted previous plan.  The default
-        is IPOPT.  fatrop exploits the stage structure and reaches IPOPT's optimum in about a
-        third of the time (issue 16: recovery solves median 53 -> 17 ms CPU on a loaded
-        machine); it runs under a watchdog, and it is opt-in because it lost 2 of 60
-        mismatched paper-plant starts that IPOPT holds
+        is fatrop where CasADi has it, else IPOPT: fatrop exploits the stage structure and
+        reaches IPOPT's optimum in about a third of the time (issue 16: recovery solves
+        median 53 -> 17 ms CPU on a loaded machine); it runs under a watchdog
         (:func:`~lsindy_cas.control.shooting.default_robust_solver`).
         ``"continue"`` halves the step
         time's p99 (no IPOPT after most failures) but applies stale plans more often: it
@@ -120,7 +119,7 @@ class DiscreteInputMPC:
         (``"warm"``: at most ``max_iter`` iterations, its iterate applied if finite,
         as there is no previous plan to fall back on but the guess, and continued on the next
         step), or fatrop or IPOPT with up to ``max(10 * max_iter, 300)`` iterations (the
-        default: IPOPT, see ``recovery``).
+        default: as ``recovery``).
     lookahead_penalty : casadi.Function, optional
         ``x -> scalar`` added to the cost of every state the lookahead enumerates.
     adapt : bool

@@ -35,22 +35,24 @@ WATCHDOG_SECONDS = 5.0
 
 
 def default_robust_solver():
-    """``"ipopt"``: the default solver of cold starts and recoveries.
+    """The default solver of cold starts and recoveries: ``"fatrop"`` if this CasADi has it,
+    else ``"ipopt"``.
 
-    fatrop (``cold="fatrop"``, ``recovery="fatrop"``) reaches the same optima about three times
-    faster, and with ``jit=True`` it is the configuration whose step p99 meets 20 ms.  It hung
-    (inside its linear solver, for minutes) on two family-benchmark episodes; the cause was
-    ours -- sqpmethod had reported success for a diverged plan (shooting gaps of 1e82) that was
-    shifted into the warm start -- and is fixed (a success claim with the constraints violated
-    is a failure, and fatrop is never handed a guess with absurd gaps or NaN evaluations); since
-    the hang also depends on fatrop's state from earlier solves (the same guess handed to a new
-    solver converged), every fatrop solve also runs under a
+    fatrop exploits the stage structure and reaches IPOPT's optima about three times faster;
+    with ``jit=True`` it is the configuration whose step p99 meets 20 ms (issue 16).  Its past:
+    it hung (inside its linear solver, for minutes) on two family-benchmark episodes.  The cause
+    was ours -- sqpmethod had reported success for a diverged plan (shooting gaps of 1e82) that
+    was shifted into the warm start -- and is fixed: a success claim with the constraints
+    violated is a failure, and fatrop is never handed a guess with absurd gaps or NaN
+    evaluations.  Since the hang also depends on fatrop's state from earlier solves (the same
+    guess handed to a new solver converged), every fatrop solve runs under a
     :class:`~lsindy_cas.control.watchdog.Watchdog` (abandoned after ``WATCHDOG_SECONDS``, IPOPT
-    from then on).  It stays opt-in for another reason: on the paper plant's mismatched starts
-    of seeds 1-3 it lost 2 of 60 (the swing-up passed the top with the cart too fast, several
-    times), where IPOPT lost none (issue 16; README, "Step time").
+    from then on).  It then lost 2 of 60 mismatched paper-plant starts that IPOPT held (the
+    swing-up passed the top too fast and spun around); with the top-rate term of
+    :class:`~lsindy_cas.mpc.SwingUpMPC`'s cost both hold every start of seeds 0-3 and the
+    80 mismatched ones.  ``cold="ipopt", recovery="ipopt"`` chooses IPOPT.
     """
-    return "ipopt"
+    return "fatrop" if ca.has_nlpsol("fatrop") else "ipopt"
 
 
 def check_solver_available(name, value):
