@@ -40,6 +40,10 @@ class MPCStats:
     n_resumed : int
         Solves that followed steps decided by the own rule without a solve (the first solve
         after the balancer let go; ``solve_balanced=False``).
+    n_guard : int
+        Steps whose force a track guard replaced by full braking
+        (:class:`~lsindy_cas.control.track_guard.TrackGuard`: the cart could otherwise not be
+        stopped inside the track).
     iterations : list of int
         Solver iterations per solve.
     solve_kinds : list of str
@@ -57,6 +61,7 @@ class MPCStats:
     n_inexact: int = 0
     n_balanced: int = 0
     n_resumed: int = 0
+    n_guard: int = 0
     solve_times: list = field(default_factory=list)
     solve_cpu_times: list = field(default_factory=list)
     step_times: list = field(default_factory=list)
@@ -96,7 +101,7 @@ class MPCStats:
         pct = (lambda a, q: float(np.percentile(a, q)) if a.size else float("nan"))
         return {"n_solves": self.n_solves, "n_failures": self.n_failures,
                 "n_inexact": self.n_inexact, "n_balanced": self.n_balanced,
-                "n_resumed": self.n_resumed,
+                "n_resumed": self.n_resumed, "n_guard": self.n_guard,
                 "solve_ms_median": pct(t, 50), "solve_ms_p99": pct(t, 99),
                 "solve_ms_max": float(t.max()) if t.size else float("nan"),
                 "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),
