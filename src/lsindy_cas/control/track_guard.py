@@ -50,7 +50,7 @@ class TrackGuard:
     factor : float
         The predicted excursion from the current position is multiplied by this (>= 1) before
         it is compared with the track: room for a model whose braking distance is too short
-        (a 10 % heavier plant brakes about 10 % longer).
+        (a 10 % heavier cart brakes about 10 % longer: the default 1.1).
     horizon : float
         Seconds of braking predicted; a cart not stopped by then counts as leaving the track.
 
@@ -61,8 +61,8 @@ class TrackGuard:
         controller in ``stats.n_guard``).
     """
 
-    def __init__(self, step, levels, *, cart_index, input_index, track_limit, dt, margin=0.1,
-                 factor=1.25, horizon=3.0):
+    def __init__(self, step, levels, *, cart_index, input_index, track_limit, dt, margin=0.05,
+                 factor=1.1, horizon=3.0):
         self.levels = np.asarray(levels, dtype=float)
         self.ic, self.track_limit = int(cart_index), float(track_limit)
         self.margin = check_real("guard margin", margin, nonnegative=True)
