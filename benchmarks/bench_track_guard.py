@@ -54,11 +54,15 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="3 starts")
     ap.add_argument("--scenarios", default="nominal,mismatch")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--variants", default="off,on",
+                    help="controllers run: off (guard=False), on (guard=True) or both")
     args = ap.parse_args(argv)
     n = 3 if args.quick else args.starts
     scenarios = args.scenarios.split(",")
-    if n < 1 or not set(scenarios) <= {"nominal", "mismatch"}:
-        ap.error("--starts must be >= 1 and --scenarios among nominal,mismatch")
+    variants = [{"off": False, "on": True}.get(v) for v in args.variants.split(",")]
+    if n < 1 or not set(scenarios) <= {"nominal", "mismatch"} or None in variants:
+        ap.error("--starts must be >= 1, --scenarios among nominal,mismatch and --variants "
+                 "among off,on")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -68,7 +72,7 @@ def main(argv=None):
     print("| scenario | guard | success | max abs x (m) | guard steps | median t_up (s) |")
     print("|---|---|---|---|---|---|")
     for scen in scenarios:
-        for guard in (False, True):
+        for guard in variants:
             c = run(model, starts, scen, guard, args.seed)
             report["cells"][f"{scen}/{'guard' if guard else 'no-guard'}"] = c
             print(f"| {scen} | {guard} | {c['successes']}/{c['episodes']} | "

@@ -5,14 +5,15 @@ A real cart-pendulum rig has end stops; whatever the controller plans (a stale p
 after failed solves, a balancer holding a pole that cannot be held), the cart must stay in
 ``|x| <= track_limit``.  Each step the guard predicts, on the controller's own model (its
 discrete step ``F(x, u)``), the state after applying the chosen force for one period and then
-the *braking policy*: full force against the cart's velocity (the lowest level while the cart
-moves right, the highest while it moves left) for ``horizon`` seconds, which stops the cart and
-then holds it (the force chatters around zero speed).  The pole's motion is part of the
-prediction, so the bound holds for any pole angle the model covers.  If the cart's predicted
-excursion, its distance from the current position enlarged by ``factor`` (room for a model
-whose masses are off), leaves ``|x| <= track_limit - margin`` at any of these steps, or the cart
-has not stopped by the end, the guard applies the braking force now instead; otherwise it leaves
-the controller's choice alone.  Since braking is then still possible one step later, the cart
+the *stopping policy* for ``horizon`` seconds: each period the level after which the cart's
+speed is smallest, i.e. full force against a fast cart, then whichever level holds it (always
+pushing against the velocity chatters, and where one push changes the speed by more than twice
+the speed, walks the cart to the end: seen on a 0.55 kg cart).  The pole's motion is part of
+the prediction, so the bound holds for any pole angle the model covers.  If the cart's
+predicted excursion, its distance from the current position enlarged by ``factor`` (room for a
+model whose masses are off), leaves ``|x| <= track_limit - margin`` at any of these steps (or
+the speed left at the end could not be stopped in time), the guard applies the stopping policy's level now instead;
+otherwise it leaves the controller's choice alone.  Since braking is then still possible one step later, the cart
 stays inside as long as the model's braking distance is right to within ``factor``.
 
 Everything comes from the model: no plant parameter is assumed.
@@ -52,17 +53,20 @@ class TrackGuard:
         it is compared with the track: room for a model whose braking distance is too short
         (a 10 % heavier cart brakes about 10 % longer: the default 1.1).
     horizon : float
-        Seconds of braking predicted; a cart not stopped by then counts as leaving the track.
+        Seconds of the stopping policy predicted; the speed left at the end is taken to need
+        ``v^2 / (2 decel)`` more (:attr:`decel`: the model's full-force deceleration at rest).
 
     Attributes
     ----------
+    decel : float
+        The cart's deceleration (m/s^2) under full force, from the model at rest.
     n_fired : int
         Steps whose force the guard replaced, since construction (also counted by the
         controller in ``stats.n_guard``).
     """
 
     def __init__(self, step, levels, *, cart_index, input_index, track_limit, dt, margin=0.05,
-                 factor=1.1, horizon=3.0):
+                 factor=1.1, horizon=2.0):
         self.levels = np.asarray(levels, dtype=float)
         self.ic, self.track_limit = int(cart_index), float(track_limit)
         self.margin = check_real("guard margin", margin, nonnegative=True)
@@ -73,46 +77,61 @@ class TrackGuard:
             raise ValueError(f"guard factor must be >= 1, got {factor!r}.")
         horizon = check_real("guard horizon", horizon, positive=True)
         self.n_steps = max(1, int(np.ceil(horizon / float(dt))))
-        n_input = step.size1_in(1)
-        lo, hi = float(self.levels[0]), float(self.levels[-1])
-        x = ca.SX.sym("x", step.size1_in(0))
-        v = x[2 + self.ic]
-        u = ca.SX.zeros(n_input)
-        u[input_index] = ca.if_else(v > 0, lo, hi)
-        brake_step = ca.Function("brake", [x], [step(x, u)])
-        x0 = ca.SX.sym("x0", step.size1_in(0))
-        f = ca.SX.sym("f")
-        u0 = ca.SX.zeros(n_input)
-        u0[input_index] = f
-        rows = [step(x0, u0)]
+        n_input, n_state = step.size1_in(1), step.size1_in(0)
+
+        def held(x, force):
+            u = ca.SX.zeros(n_input)
+            u[input_index] = force
+            return step(x, u)
+
+        # the stopping policy: the level whose next cart speed is smallest (full force against
+        # a fast cart; near rest whichever level holds it best, so that chattering between two
+        # levels whose kick exceeds the speed cannot walk the cart to the end)
+        x = ca.SX.sym("x", n_state)
+        nexts = [held(x, float(f)) for f in self.levels]
+        best, speed, index = nexts[0], ca.fabs(nexts[0][2 + self.ic]), ca.SX(0)
+        for i, nxt in enumerate(nexts[1:], start=1):
+            better = ca.fabs(nxt[2 + self.ic]) < speed
+            best = ca.if_else(better, nxt, best)
+            speed = ca.if_else(better, ca.fabs(nxt[2 + self.ic]), speed)
+            index = ca.if_else(better, i, index)
+        self._stop = ca.Function("stop", [x], [best, index])
+        x0, f = ca.SX.sym("x0", n_state), ca.SX.sym("f")
+        rows = [held(x0, f)]
         for _ in range(self.n_steps):
-            rows.append(brake_step(rows[-1]))
+            rows.append(self._stop(rows[-1])[0])
         traj = ca.horzcat(*rows)
         self._predict = ca.Function("guard", [x0, f], [traj[self.ic, :], traj[2 + self.ic, :]])
+        # the cart's deceleration under full force (m/s^2), from the model at rest: what the
+        # speed left at the end of the horizon still needs to stop
+        rest = np.zeros(n_state)
+        swing = [float(ca.Function("h", [x], [n[2 + self.ic]])(rest)) for n in (nexts[0], nexts[-1])]
+        self.decel = max(abs(swing[1] - swing[0]) / (2.0 * float(dt)), 1e-9)
         self.n_fired = 0
 
     def brake_level(self, x):
-        """Index of the braking force at state ``x``: against the cart's velocity (towards the
-        centre when the cart is at rest)."""
-        v = x[2 + self.ic]
-        direction = v if v != 0 else x[self.ic]
-        return 0 if direction > 0 else self.levels.size - 1
+        """Index of the stopping level at state ``x``: the level after which the model's cart
+        speed is smallest (full force against a fast cart)."""
+        return int(self._stop(np.asarray(x, dtype=float))[1])
 
     def safe(self, x, force):
-        """Whether applying ``force`` for one period and braking afterwards keeps the cart
-        (with the excursion scaled by ``factor``) inside ``track_limit - margin`` and stops it
-        within the horizon, on the model."""
+        """Whether applying ``force`` for one period and the stopping policy afterwards keeps
+        the cart (its excursion scaled by ``factor``) inside ``track_limit - margin``, on the
+        model."""
         pos, vel = (np.asarray(a, dtype=float).ravel() for a in self._predict(x, force))
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
             return False
+        # the speed left at the end of the horizon still needs v^2 / (2 decel) to stop
+        pos = np.append(pos, pos[-1] + vel[-1] * abs(vel[-1]) / (2 * self.decel))
         reach = x[self.ic] + self.factor * (pos - x[self.ic])
-        stopped = np.any(np.sign(vel[1:]) != np.sign(vel[:-1])) or abs(vel[-1]) < 1e-3
-        return bool(stopped and np.max(np.abs(reach)) <= self.track_limit - self.margin)
+        return bool(np.max(np.abs(reach)) <= self.track_limit - self.margin)
 
     def __call__(self, x, index):
-        """The level index to apply at state ``x``: ``index`` if it is safe, else braking."""
+        """The level index to apply at state ``x``: ``index`` if it is safe, else the stopping
+        policy's (:meth:`brake_level`)."""
         x = np.asarray(x, dtype=float)
         if self.safe(x, float(self.levels[index])):
             return index
-        self.n_fired += 1
-        return self.brake_level(x)
+        stop = self.brake_level(x)
+        self.n_fired += stop != index
+        return stop
