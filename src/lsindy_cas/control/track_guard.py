@@ -1,20 +1,20 @@
-"""Track keeping: override a controller's force with full braking when the cart could otherwise
-no longer be stopped inside its track (:class:`TrackGuard`).
+"""Track keeping: override a controller's force where the cart could otherwise no longer be
+stopped inside its track (:class:`TrackGuard`).
 
 A real cart-pendulum rig has end stops; whatever the controller plans (a stale plan replayed
 after failed solves, a balancer holding a pole that cannot be held), the cart must stay in
 ``|x| <= track_limit``.  Each step the guard predicts, on the controller's own model (its
 discrete step ``F(x, u)``), the state after applying the chosen force for one period and then
 the *stopping policy* for ``horizon`` seconds: each period the level after which the cart's
-speed is smallest, i.e. full force against a fast cart, then whichever level holds it (always
-pushing against the velocity chatters, and where one push changes the speed by more than twice
-the speed, walks the cart to the end: seen on a 0.55 kg cart).  The pole's motion is part of
-the prediction, so the bound holds for any pole angle the model covers.  If the cart's
-predicted excursion, its distance from the current position enlarged by ``factor`` (room for a
-model whose masses are off), leaves ``|x| <= track_limit - margin`` at any of these steps (or
-the speed left at the end could not be stopped in time), the guard applies the stopping policy's level now instead;
-otherwise it leaves the controller's choice alone.  Since braking is then still possible one step later, the cart
-stays inside as long as the model's braking distance is right to within ``factor``.
+speed is nearest a slow retreat towards the centre, i.e. full force against a fast cart, then
+whichever level holds it against the pole's pull (always pushing against the velocity, or only
+minimising the speed, walked a 0.55 kg cart to the end).  The pole's motion is part of the
+prediction, so the bound holds for any pole angle the model covers.  If the cart's predicted
+excursion, its distance from the current position enlarged by ``factor`` (room for a model
+whose masses are off), leaves ``|x| <= track_limit - margin`` at any of these steps (or the
+speed left at the end could not be stopped in time), the guard applies instead the level whose
+prediction reaches least far; otherwise it leaves the controller's choice alone.  No force
+holds a pole that spins so fast that its pull ``m_p L theta_dot^2`` exceeds the largest one.
 
 Everything comes from the model: no plant parameter is assumed.
 """
@@ -60,6 +60,8 @@ class TrackGuard:
     ----------
     decel : float
         The cart's deceleration (m/s^2) under full force, from the model at rest.
+    retreat : float
+        The stopping policy's target speed towards the centre (m/s): ``decel * dt / 4``.
     n_fired : int
         Steps whose force the guard replaced, since construction (also counted by the
         controller in ``stats.n_guard``).
@@ -84,16 +86,28 @@ class TrackGuard:
             u[input_index] = force
             return step(x, u)
 
-        # the stopping policy: the level whose next cart speed is smallest (full force against
-        # a fast cart; near rest whichever level holds it best, so that chattering between two
-        # levels whose kick exceeds the speed cannot walk the cart to the end)
+        # the stopping policy: the level whose next cart speed is nearest a slow retreat
+        # towards the centre (full force against a fast cart; near rest whichever level holds
+        # it while the pole pulls: a policy that only pushes against the velocity, or only
+        # minimises the speed, lets a light cart walk to the end)
         x = ca.SX.sym("x", n_state)
         nexts = [held(x, float(f)) for f in self.levels]
-        best, speed, index = nexts[0], ca.fabs(nexts[0][2 + self.ic]), ca.SX(0)
+        rest = np.zeros(n_state)
+        kicks = [float(ca.Function("h", [x], [n[2 + self.ic]])(rest)) for n in (nexts[0], nexts[-1])]
+        #: the cart's deceleration (m/s^2) under full force, from the model at rest
+        self.decel = max(abs(kicks[1] - kicks[0]) / (2.0 * float(dt)), 1e-9)
+        #: the retreat speed (m/s): a quarter of one full push's speed change
+        self.retreat = self.decel * float(dt) / 4
+        target = -self.retreat * ca.sign(x[self.ic])
+
+        def miss(nxt):
+            return ca.fabs(nxt[2 + self.ic] - target)
+
+        best, err, index = nexts[0], miss(nexts[0]), ca.SX(0)
         for i, nxt in enumerate(nexts[1:], start=1):
-            better = ca.fabs(nxt[2 + self.ic]) < speed
+            better = miss(nxt) < err
             best = ca.if_else(better, nxt, best)
-            speed = ca.if_else(better, ca.fabs(nxt[2 + self.ic]), speed)
+            err = ca.if_else(better, miss(nxt), err)
             index = ca.if_else(better, i, index)
         self._stop = ca.Function("stop", [x], [best, index])
         x0, f = ca.SX.sym("x0", n_state), ca.SX.sym("f")
@@ -102,36 +116,41 @@ class TrackGuard:
             rows.append(self._stop(rows[-1])[0])
         traj = ca.horzcat(*rows)
         self._predict = ca.Function("guard", [x0, f], [traj[self.ic, :], traj[2 + self.ic, :]])
-        # the cart's deceleration under full force (m/s^2), from the model at rest: what the
-        # speed left at the end of the horizon still needs to stop
-        rest = np.zeros(n_state)
-        swing = [float(ca.Function("h", [x], [n[2 + self.ic]])(rest)) for n in (nexts[0], nexts[-1])]
-        self.decel = max(abs(swing[1] - swing[0]) / (2.0 * float(dt)), 1e-9)
         self.n_fired = 0
 
     def brake_level(self, x):
-        """Index of the stopping level at state ``x``: the level after which the model's cart
-        speed is smallest (full force against a fast cart)."""
+        """Index of the stopping policy's level at state ``x``: the level after which the
+        model's cart speed is nearest :attr:`retreat` towards the centre."""
         return int(self._stop(np.asarray(x, dtype=float))[1])
+
+    def reach(self, x, force):
+        """Largest ``|x|`` (m) the model predicts for ``force`` over one period followed by the
+        stopping policy, the excursion from the current position scaled by ``factor`` (inf if
+        the prediction is not finite)."""
+        pos, vel = (np.asarray(a, dtype=float).ravel() for a in self._predict(x, force))
+        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
+            return np.inf
+        # the speed left at the end of the horizon still needs v^2 / (2 decel) to stop
+        pos = np.append(pos, pos[-1] + vel[-1] * abs(vel[-1]) / (2 * self.decel))
+        return float(np.max(np.abs(x[self.ic] + self.factor * (pos - x[self.ic]))))
 
     def safe(self, x, force):
         """Whether applying ``force`` for one period and the stopping policy afterwards keeps
         the cart (its excursion scaled by ``factor``) inside ``track_limit - margin``, on the
         model."""
-        pos, vel = (np.asarray(a, dtype=float).ravel() for a in self._predict(x, force))
-        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
-            return False
-        # the speed left at the end of the horizon still needs v^2 / (2 decel) to stop
-        pos = np.append(pos, pos[-1] + vel[-1] * abs(vel[-1]) / (2 * self.decel))
-        reach = x[self.ic] + self.factor * (pos - x[self.ic])
-        return bool(np.max(np.abs(reach)) <= self.track_limit - self.margin)
+        return self.reach(x, force) <= self.track_limit - self.margin
 
     def __call__(self, x, index):
-        """The level index to apply at state ``x``: ``index`` if it is safe, else the stopping
-        policy's (:meth:`brake_level`)."""
+        """The level index to apply at state ``x``: ``index`` if it is safe, else the level
+        whose predicted reach is smallest (ties: ``index``, then the stopping policy's)."""
         x = np.asarray(x, dtype=float)
-        if self.safe(x, float(self.levels[index])):
+        mine = self.reach(x, float(self.levels[index]))
+        if mine <= self.track_limit - self.margin:
             return index
-        stop = self.brake_level(x)
-        self.n_fired += stop != index
-        return stop
+        reach = [mine if i == index else self.reach(x, float(f))
+                 for i, f in enumerate(self.levels)]
+        best = int(np.argmin(reach))
+        if reach[best] >= mine - 1e-9:
+            return index
+        self.n_fired += 1
+        return best
