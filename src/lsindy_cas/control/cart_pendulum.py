@@ -154,9 +154,9 @@ class SwingUpMPC(DiscreteInputMPC):
     guard : bool or dict
         Keep the cart on the track whatever the controller chose
         (:class:`~lsindy_cas.control.track_guard.TrackGuard`): where the model predicts that
-        the chosen force followed by full braking could not stop the cart inside
-        ``track_limit``, brake now (counted in ``stats.n_guard``); a dict passes ``margin``,
-        ``factor``, ``horizon`` to it.  ``False`` is the behaviour before issue 16 (the cart
+        the chosen force followed by its stopping policy could not keep the cart inside
+        ``track_limit``, apply the level that reaches least far (counted in
+        ``stats.n_guard``); a dict passes ``margin``, ``factor``, ``horizon`` to it.  ``False`` is the behaviour before issue 16 (the cart
         ran to 10.5 m on a plant that cannot be balanced).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
@@ -293,8 +293,8 @@ class SwingUpMPC(DiscreteInputMPC):
         return super()._uses_correction or self.balancer is not None
 
     def _applied(self, x, index, t_start, c_start, kind):
-        """Apply level ``index`` unless the track guard overrides it with braking (then the
-        braking force is what the online correction and the stats record)."""
+        """Apply level ``index`` unless the track guard overrides it (then the guard's level
+        is what the online correction and the stats record)."""
         if self.guard is not None:
             safe = self.guard(x, index)
             if safe != index:

@@ -41,7 +41,7 @@ class MPCStats:
         Solves that followed steps decided by the own rule without a solve (the first solve
         after the balancer let go; ``solve_balanced=False``).
     n_guard : int
-        Steps whose force a track guard replaced by full braking
+        Steps whose force a track guard replaced
         (:class:`~lsindy_cas.control.track_guard.TrackGuard`: the cart could otherwise not be
         stopped inside the track).
     iterations : list of int
