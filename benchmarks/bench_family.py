@@ -106,9 +106,9 @@ def classify(ep, kernel):
     return ("fell" if ang.max() > 0.5 else "margin"), peaks
 
 
-def run_cell(model, system, starts, scenario, balance, seed):
+def run_cell(model, system, starts, scenario, balance, seed, guard=True):
     """Episodes of one controller on one plant and scenario; returns a JSON-ready summary."""
-    ctrl = SwingUpMPC(model, dt=DT, balance=balance)
+    ctrl = SwingUpMPC(model, dt=DT, balance=balance, guard=guard)
     rng = np.random.default_rng(seed)
     p = system.params
     rows, plan_ms = [], []
@@ -138,7 +138,7 @@ def run_cell(model, system, starts, scenario, balance, seed):
             "max_track_used": max(r["track_used"] for r in rows),
             "forces_in_set": all(r["forces_in_set"] for r in rows),
             "step_ms_median": st["step_ms_median"], "step_ms_p99": st["step_ms_p99"],
-            "plan_ms_median": float(np.median(plan_ms)) if plan_ms else None,
+            "n_guard": st["n_guard"], "plan_ms_median": float(np.median(plan_ms)) if plan_ms else None,
             "plan_ms_p99": float(np.percentile(plan_ms, 99)) if plan_ms else None,
             "failed_starts": [i for i, r in enumerate(rows) if not r["success"]],
             "failures": {c: sum(r["failure"] == c for r in rows)
@@ -180,7 +180,7 @@ def figure(report, path):
     plt.close(fig)
 
 
-def run_plant(i, starts, models, balancers, seed):
+def run_plant(i, starts, models, balancers, seed, guard=True):
     """Identify plant ``i`` and run every cell on it; returns (row, table lines)."""
     mc, mp, L = PLANTS[i]
     system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
@@ -202,7 +202,7 @@ def run_plant(i, starts, models, balancers, seed):
             res = {}
             for scen in ("nominal", "mismatch"):
                 res[scen] = run_cell(model, system, starts, scen, BALANCERS[bname],
-                                     [seed, i, scen == "mismatch"])
+                                     [seed, i, scen == "mismatch"], guard)
                 row["cells"][f"{mname}/{bname}/{scen}"] = res[scen]
             n, m = res["nominal"], res["mismatch"]
             plan = [c["plan_ms_p99"] for c in (n, m) if c["plan_ms_p99"] is not None]
@@ -231,6 +231,8 @@ def main(argv=None):
     ap.add_argument("--models", default="identified,exact", help="identified, exact or both")
     ap.add_argument("--workers", type=int, default=1, help="plants run in parallel processes")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-guard", action="store_true",
+                    help="controllers without the track guard (before issue 16's guard)")
     args = ap.parse_args(argv)
     starts_n = args.starts or (3 if args.quick else 20)
     if starts_n < 1 or args.workers < 1:
@@ -245,13 +247,14 @@ def main(argv=None):
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     starts = random_starts(starts_n, args.seed)
-    report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE, "plants": []}
+    report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE,
+              "guard": not args.no_guard, "plants": []}
     t_all = time.perf_counter()
     print("| mc | mp | L | kick | worst mismatch kick (share proven unreachable) | cell | nominal |"
           " mismatch | nominal, reachable | mismatch, reachable | median t_up (s) | "
           "max abs x (m) | step p99 (ms) | plan p99 (ms) | failures nominal / mismatch |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    jobs = [(i, starts, models, balancers, args.seed) for i in idx]
+    jobs = [(i, starts, models, balancers, args.seed, not args.no_guard) for i in idx]
     if args.workers == 1:
         results = (run_plant(*job) for job in jobs)
     else:

@@ -125,3 +125,26 @@ def test_trajectory_validation():
         Trajectory(t, [["a"]] * 10, np.zeros((10, 1)), ["q"])
     with pytest.raises(ValueError, match="do not match"):
         Trajectory(t, np.zeros((10, 1)), np.zeros((10, 1)), ["q"]).reorder(["r"])
+
+
+@pytest.mark.parametrize("seed, written", [(0, True), (1, False)])
+def test_cli_pure_noise_exits_3_whether_or_not_a_model_passes(tmp_path, seed, written):
+    """Pure noise: for seed 0 a model passes the rules but is judged undetermined (printout and
+    file written); for seed 1 no admissible model exists at all.  Both are data that do not
+    determine the energy, not bad options: exit 3 with one line on stderr either way (the
+    second used to exit 2, as if the options were unusable)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(301) * 0.01
+    tr = Trajectory(t, rng.standard_normal((301, 1)), rng.standard_normal((301, 1)), ["s"],
+                    Q=rng.standard_normal((301, 1)))
+    path = tr.save(tmp_path / "noise.csv")
+    out = tmp_path / "model.json"
+    r = run_cli("identify", path, "--coords", "s", "--features", "s,s_dot", "--degree", "2",
+                "--json", out)
+    assert r.returncode == 3, r.stderr
+    lines = [ln for ln in r.stderr.strip().splitlines() if not ln.startswith("search")]
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert lines[0].startswith("lsindy identify: the data do not determine the model: ")
+    assert out.exists() == written
+    if not written:
+        assert "cannot identify the energy" in lines[0]

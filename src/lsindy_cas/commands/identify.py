@@ -21,7 +21,8 @@ exit codes:
   0  the model is determined by the data (status "ok")
   2  bad input (one line on stderr; nothing is fitted)
   3  the model is not determined by the data (status "undetermined"): one line on stderr
-     with the reason; the printout and the --json file are still written, with the status"""
+     with the reason; the printout and the --json file are still written, with the status
+     (no admissible model at all: the one line only, nothing written)"""
 
 
 def run(args) -> int:
@@ -73,9 +74,15 @@ def run(args) -> int:
                             max_terms=args.max_terms, hold=args.hold, dissipation=dissipation,
                             time_limit=args.time_limit)
     from ..progress import ProgressBar
-    with ProgressBar("searching supports", unit="supports") as bar:
-        model.fit(trajs, scale, passive=True if args.passive else None, progress=bar,
-                  client=client)
+    from ..identify.selection import UndeterminedError
+    try:
+        with ProgressBar("searching supports", unit="supports") as bar:
+            model.fit(trajs, scale, passive=True if args.passive else None, progress=bar,
+                      client=client)
+    except UndeterminedError as exc:    # the search ran: the data, not the options, fall short
+        msg = " ".join(str(exc).split())
+        print(f"lsindy identify: the data do not determine the model: {msg}", file=sys.stderr)
+        return EXIT_UNDETERMINED
     if client is not None:
         client.close()
     if args.refine:

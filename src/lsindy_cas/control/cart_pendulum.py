@@ -31,6 +31,7 @@ from .._validate import check_real
 from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
 from .sequence_balancer import SequenceBalancer
+from .track_guard import TrackGuard
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
 
@@ -154,6 +155,13 @@ class SwingUpMPC(DiscreteInputMPC):
         least :attr:`SEQUENCE_KICK`, the pulse balancer otherwise.  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
         without 0 in the set is an error).
+    guard : bool or dict
+        Keep the cart on the track whatever the controller chose
+        (:class:`~lsindy_cas.control.track_guard.TrackGuard`): where the model predicts that
+        the chosen force followed by its stopping policy could not keep the cart inside
+        ``track_limit``, apply the level that reaches least far (counted in
+        ``stats.n_guard``); a dict passes ``margin``, ``factor``, ``horizon`` to it.  ``False`` is the behaviour before issue 16 (the cart
+        ran to 10.5 m on a plant that cannot be balanced).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -169,6 +177,8 @@ class SwingUpMPC(DiscreteInputMPC):
         Solve counts and times, accumulated over episodes.
     balancer : PulseBalancer or None
         The balancer near the upright (``balance``).
+    guard : TrackGuard or None
+        The track guard (``guard``).
     plan_ : dict
         Last relaxed plan: ``controls`` (horizon, n_control), ``forces`` (horizon,) relaxed
         forces (N), ``states`` (horizon, 4) predicted x_1..x_N, ``success``.
@@ -185,7 +195,7 @@ class SwingUpMPC(DiscreteInputMPC):
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
-                 balance=True, **options):
+                 balance=True, guard=True, **options):
         coords = getattr(model, "coords_", None) or getattr(model, "coords", None)
         if coords is None or not hasattr(model, "ode"):
             raise TypeError("model must be a fitted cart-pendulum model with coords_ and ode().")
@@ -221,6 +231,13 @@ class SwingUpMPC(DiscreteInputMPC):
                              f"{sorted(self.default_weights)}.")
         w = dict(self.default_weights, **(weights or {}))
         kind, balance_options = _balancer_kind(balance)  # checked before the NLP is built
+        if not isinstance(guard, (bool, dict)):
+            raise TypeError(f"guard must be True, False or a dict of options, got "
+                            f"{type(guard).__name__}.")
+        unknown = set(guard) - {"margin", "factor", "horizon"} if isinstance(guard, dict) else ()
+        if unknown:
+            raise ValueError(f"guard has unknown keys {sorted(unknown)}; known: "
+                             f"['factor', 'horizon', 'margin'].")
         x = ca.SX.sym("x", 4)
         # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
         half = (x[ip] - self.upright) / 2
@@ -245,6 +262,11 @@ class SwingUpMPC(DiscreteInputMPC):
                          dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
                          input_weight=w["input"], **options)
         self.cart_index, self.pole_index = ic, ip
+        self.guard = None
+        if guard is not False:
+            self.guard = TrackGuard(self.step_function, self.levels, cart_index=ic,
+                                    input_index=ic, track_limit=self.track_limit, dt=self.dt,
+                                    **(guard if isinstance(guard, dict) else {}))
         self.balancer = None
         if balance is True and 0.0 not in self.levels:
             kind = None  # nothing to wait with: the relaxed plan decides everywhere
@@ -306,6 +328,16 @@ class SwingUpMPC(DiscreteInputMPC):
     def _uses_correction(self):
         """The lookahead's and the balancer's predictions both use the online correction."""
         return super()._uses_correction or self.balancer is not None
+
+    def _applied(self, x, index, t_start, c_start, kind):
+        """Apply level ``index`` unless the track guard overrides it (then the guard's level
+        is what the online correction and the stats record)."""
+        if self.guard is not None:
+            safe = self.guard(x, index)
+            if safe != index:
+                self.stats.n_guard += 1
+                index = safe
+        return super()._applied(x, index, t_start, c_start, kind)
 
     def _own_level(self, x):
         """The balancer's level near the upright (None elsewhere or without a balancer)."""

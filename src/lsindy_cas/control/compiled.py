@@ -16,7 +16,9 @@ The folder is that of :mod:`lsindy_cas.symbolic.fcache` (``$LSINDY_CACHE_DIR``; 
 the cache, and then every build compiles).  A missing, unreadable or corrupt file is rebuilt, and
 an unwritable folder only means nothing is saved.  Files are large (about 40 MB for the
 swing-up's three: the SQP's Hessian and Jacobian, fatrop with its NLP) and may be deleted at
-any time.
+any time.  Nothing is left in the temporary folder: CasADi's C sources and libraries are
+removed once loaded (before issue 16 a ``/tmp/lsindy_jit_*`` folder, often with a 2 MB
+library, stayed behind per compile and per load).
 """
 
 from __future__ import annotations
@@ -55,15 +57,47 @@ def _jit_options():
 
 @contextlib.contextmanager
 def _scratch():
-    """Run inside a new folder under the system's temporary one: CasADi's JIT writes its C
-    source and library into the current directory (and removes them when the Function is
-    freed, leaving the empty folder)."""
+    """Run inside a new folder under the system's temporary one (its path is yielded): CasADi's
+    JIT writes its C source and library into the current directory, and removes them when the
+    Function is freed."""
     cwd = os.getcwd()
-    os.chdir(tempfile.mkdtemp(prefix="lsindy_jit_"))
+    folder = tempfile.mkdtemp(prefix="lsindy_jit_")
+    os.chdir(folder)
     try:
-        yield
+        yield folder
     finally:
         os.chdir(cwd)
+
+
+def _remove_loaded_libraries(maps="/proc/self/maps"):
+    """Remove the JIT libraries this process has loaded from folders named ``lsindy_jit_*``.
+
+    Loading a compiled Function from the cache makes CasADi write its embedded library back to
+    the path it was built at (a folder under the temporary one) and load it from there, and
+    nothing removes that file.  Once loaded it is no longer needed (POSIX keeps the mapping),
+    so it is removed here, with its folder if that is left empty.  Without ``/proc`` (not
+    Linux) nothing is done.  Returns the files removed.
+    """
+    try:
+        with open(maps) as fh:
+            fields = [line.split(None, 5) for line in fh]
+    except OSError:
+        return []
+    paths = {f[5].strip() for f in fields if len(f) == 6}
+    removed = []
+    for path in sorted(paths):
+        p = Path(path)
+        if not (p.name.startswith("tmp_casadi_compiler_shell") and p.suffix == ".so"
+                and p.parent.name.startswith("lsindy_jit_")):
+            continue
+        try:
+            p.unlink()
+            removed.append(p)
+        except OSError:
+            continue
+        with contextlib.suppress(OSError):
+            p.parent.rmdir()  # only if empty
+    return removed
 
 
 def _path(kind, parts):
@@ -76,21 +110,45 @@ def _path(kind, parts):
     return folder / f"jit-{kind}-{hashlib.sha256(text.encode()).hexdigest()[:32]}.casadi"
 
 
+def _load(path):
+    """The Function stored at ``path`` (None if it cannot be read), its library file removed."""
+    try:
+        f = ca.Function.load(str(path))
+    except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
+        return None
+    _remove_loaded_libraries()
+    return f
+
+
 def _load_or_build(path, build):
-    """The Function stored at ``path``, or ``build()`` (then stored there)."""
+    """The Function stored at ``path``, or ``build()`` (then stored there).  No temporary file
+    is left behind: a built Function is saved (to the scratch folder when uncached:
+    ``$LSINDY_CACHE_DIR=off`` or an unwritable folder), freed (CasADi removes the files it
+    wrote) and loaded back, its library file then removed (:func:`_remove_loaded_libraries`)."""
     if path is not None and path.exists():
-        try:
-            return ca.Function.load(str(path))
-        except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
-            pass
-    with _scratch():
+        f = _load(path)
+        if f is not None:
+            return f
+    with _scratch() as folder:  # saved inside: the embedded library is read from the folder
         f = build()
-    if path is not None:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write(path, lambda tmp: f.save(str(tmp)))
-        except Exception:  # noqa: BLE001 - read-only or full disk: run uncached
-            pass
+        target = None
+        for where in (path, Path(folder) / "function.casadi"):
+            if where is None:
+                continue
+            try:
+                where.parent.mkdir(parents=True, exist_ok=True)
+                atomic_write(where, lambda tmp: f.save(str(tmp)))
+                target = where
+                break
+            except Exception:  # noqa: BLE001 - read-only or full disk: run uncached
+                continue
+    if target is not None:
+        del f  # CasADi removes the source and library it wrote
+        f = _load(target)
+    if f is None:  # pragma: no cover - the file just written did not load back
+        with _scratch():
+            f = build()
+    shutil.rmtree(folder, ignore_errors=True)
     return f
 
 

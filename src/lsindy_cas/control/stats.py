@@ -43,6 +43,10 @@ class MPCStats:
     n_escalated : int
         Episodes in which :class:`~lsindy_cas.mpc.SwingUpMPC` switched from the pulse to the
         sequence balancer (the online estimate of the push reached ``SEQUENCE_KICK``).
+    n_guard : int
+        Steps whose force a track guard replaced
+        (:class:`~lsindy_cas.control.track_guard.TrackGuard`: the cart could otherwise not be
+        stopped inside the track).
     iterations : list of int
         Solver iterations per solve.
     solve_kinds : list of str
@@ -61,6 +65,7 @@ class MPCStats:
     n_balanced: int = 0
     n_resumed: int = 0
     n_escalated: int = 0
+    n_guard: int = 0
     solve_times: list = field(default_factory=list)
     solve_cpu_times: list = field(default_factory=list)
     step_times: list = field(default_factory=list)
@@ -101,6 +106,7 @@ class MPCStats:
         return {"n_solves": self.n_solves, "n_failures": self.n_failures,
                 "n_inexact": self.n_inexact, "n_balanced": self.n_balanced,
                 "n_resumed": self.n_resumed, "n_escalated": self.n_escalated,
+                "n_guard": self.n_guard,
                 "solve_ms_median": pct(t, 50), "solve_ms_p99": pct(t, 99),
                 "solve_ms_max": float(t.max()) if t.size else float("nan"),
                 "solve_cpu_ms_median": pct(c, 50), "solve_cpu_ms_p99": pct(c, 99),

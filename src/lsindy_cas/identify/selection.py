@@ -56,7 +56,17 @@ from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 
-__all__ = ["Step", "Selection", "select", "cv_error", "chi_of", "fold_ids", "IMPROVEMENT"]
+__all__ = ["Step", "Selection", "UndeterminedError", "select", "cv_error", "chi_of", "fold_ids",
+           "IMPROVEMENT"]
+
+
+class UndeterminedError(ValueError):
+    """Automatic selection found no admissible model for any number of terms: the data (with
+    this library) do not determine the energy.  A :class:`ValueError`, raised after the search,
+    not for unusable arguments; ``lsindy identify`` exits with code 3 on it, as for a fitted
+    model whose status is "undetermined" (the same pure-noise data give either answer
+    depending on the noise draw)."""
+
 
 IMPROVEMENT = 2.0
 # χ of a correct model is ≈ 1 − k/m_eff in theory; measured 0.2–1.7 for the true energies of the
@@ -369,7 +379,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         if k - best.k >= 2 or (fits is not None and k > fits.k):
             break
     if best is None:
-        raise ValueError("the data cannot identify the energy: no physically admissible model "
+        raise UndeterminedError("the data cannot identify the energy: no physically admissible model "
                          f"with significant terms for any number of terms {k_lo}..{k_hi} — vary "
                          "the input, add runs or check the library (" + "; ".join(reasons[:3]) + ")")
     if fits is not None and fits.k < best.k:

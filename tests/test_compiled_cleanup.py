@@ -1,0 +1,55 @@
+"""The JIT (control/compiled.py) leaves no temporary files behind (issue 16)."""
+
+import gc
+import shutil
+import tempfile
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from lsindy_cas.control import compiled
+
+needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler (gcc)")
+
+
+def test_loaded_jit_libraries_are_removed_and_nothing_else(tmp_path):
+    jit = tmp_path / "lsindy_jit_abc"
+    jit.mkdir()
+    lib = jit / "tmp_casadi_compiler_shellXy12.so"
+    lib.write_bytes(b"")
+    other = tmp_path / "other"
+    other.mkdir()
+    keep = [other / "tmp_casadi_compiler_shellQ.so", jit.parent / "libfoo.so"]
+    for k in keep:
+        k.write_bytes(b"")
+    maps = tmp_path / "maps"
+    maps.write_text("7f0000-7f1000 r-xp 00000000 08:01 1234    " + str(lib) + "\n"
+                    "7f1000-7f2000 rw-p 00000000 00:00 0 \n"            # anonymous: no path
+                    "7f2000-7f3000 r-xp 00000000 08:01 99   [vdso]\n"
+                    + "".join(f"7f3000-7f4000 r-xp 00000000 08:01 5 {k}\n" for k in keep))
+    assert compiled._remove_loaded_libraries(str(maps)) == [lib]
+    assert not jit.exists()                  # the emptied folder goes too
+    assert all(k.exists() for k in keep)
+    assert compiled._remove_loaded_libraries(str(tmp_path / "no-maps")) == []
+
+
+@needs_gcc
+@pytest.mark.parametrize("cache", ["on", "off"])
+def test_compiling_and_loading_leave_no_temporary_files(tmp_path, monkeypatch, cache):
+    scratch, cwd = tmp_path / "tmp", tmp_path / "cwd"
+    scratch.mkdir()
+    cwd.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    monkeypatch.setenv("LSINDY_CACHE_DIR", str(tmp_path / "cache") if cache == "on" else "off")
+    monkeypatch.chdir(cwd)
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("f_cleanup", [x], [ca.sin(x[0]) * x[1]])
+    for _ in range(2):                      # compiled, then (cache on) loaded from the cache
+        g = compiled.compiled_function(f)
+        np.testing.assert_allclose(float(g([0.3, -1.2])), np.sin(0.3) * -1.2, rtol=1e-14)
+        assert list(scratch.iterdir()) == []
+        del g
+        gc.collect()
+        assert list(cwd.iterdir()) == []
+    assert len(compiled.cached_files()) == (1 if cache == "on" else 0)
