@@ -11,13 +11,14 @@ episodes are the family benchmark's).  Per episode, from the controller's balanc
   and its :meth:`cart_urgency` (where the cart would stop by leaning, as a share of the
   usable track), the number of hand-overs and the share of the remaining steps the balancer
   acted;
-* the cart: when ``|x|`` first passes ``--far`` m and its largest ``|x|``;
+* the cart: when ``|x|`` first passes ``--far`` m (at all, and after the first hand-over)
+  and its largest ``|x|``;
 * the success band in the last 3 s: how many control samples left it (|phi| >= 0.1 rad or
   |theta_dot| >= 0.5 rad/s) and the state at the first of them.
 
 A failure is ``handover`` when the cart was already past recovery at the first hand-over
-(urgency > 1), ``drift`` when it was handed over recoverable and the cart later passed
-``--far`` m, ``pole`` otherwise; episodes whose plant has an empty pole kernel are
+(urgency > 1), ``drift`` when it was handed over recoverable and the cart passed ``--far`` m
+after the hand-over, ``pole`` otherwise; episodes whose plant has an empty pole kernel are
 ``unreachable`` (as in the family benchmark).  Prints a table per plant and scenario and
 writes ``cart_drift.json`` to ``--out``.
 
@@ -72,6 +73,8 @@ def episode(ctrl, plant, x0, far):
     passed = np.flatnonzero(np.abs(X[:, ic]) > far)
     row["t_far"] = float(passed[0] * DT) if passed.size else None
     on = np.flatnonzero(eng)
+    after = passed[passed > on[0]] if on.size else passed[:0]
+    row["t_far_after_handover"] = float(after[0] * DT) if after.size else None
     if on.size:
         e = X[on[0]] - b.x_ref
         e[ip] = wrap_angle(e[ip])
@@ -114,7 +117,7 @@ def run(i, model_kind, scen, starts, options, far, seed):
         elif plant_kernel(mc * f[0], mp * f[1], L * f[2]).empty:
             row["failure"] = "unreachable"
         else:
-            row["failure"] = cause(row, row["t_far"] is not None)
+            row["failure"] = cause(row, row["t_far_after_handover"] is not None)
         rows.append(row)
     failed = [r for r in rows if r["failure"] not in (None, "unreachable")]
     summary = {"plant": [mc, mp, L], "model": model_kind, "scenario": scen,

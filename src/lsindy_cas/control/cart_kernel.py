@@ -28,9 +28,10 @@ a grid point on it would be trivially viable and lend its value to its neighbour
 interpolation: use even numbers of grid points (the defaults), which put no point on it.
 
 A grid computation: the verdict is only as fine as the grid (``n_pole`` points per pole axis,
-``n_cart`` per cart axis), and the build takes tens of seconds, not one control period: a
-certificate for benchmarks (is a failed episode's hand-over state, or a whole plant, out of
-reach?), not a controller's online term.
+``n_cart`` per cart axis).  A period moves ``v0`` by a fraction of a cell, so interpolation
+erodes the kernel on coarse grids (it errs towards "not viable"): check a verdict on two
+grids.  A build takes tens of seconds to minutes, not one control period: a tool for
+benchmarks, not a controller's online term.
 """
 
 from __future__ import annotations
