@@ -49,6 +49,7 @@ def test_compiling_and_loading_leave_no_temporary_files(tmp_path, monkeypatch, c
         g = compiled.compiled_function(f)
         np.testing.assert_allclose(float(g([0.3, -1.2])), np.sin(0.3) * -1.2, rtol=1e-14)
         assert list(scratch.iterdir()) == []
+        assert list(cwd.iterdir()) == []        # also while it lives: a process may exit
         del g
         gc.collect()
         assert list(cwd.iterdir()) == []

@@ -112,9 +112,15 @@ def _path(kind, parts):
 
 def _load(path):
     """The Function stored at ``path`` (None if it cannot be read), its library file removed."""
-    try:
-        f = ca.Function.load(str(path))
-    except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
+    # loading writes an empty jit_tmp*.c into the current directory (removed only when the
+    # Function is freed, so left behind at exit): load inside a scratch folder, then remove it
+    with _scratch() as folder:
+        try:
+            f = ca.Function.load(str(path))
+        except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
+            f = None
+    shutil.rmtree(folder, ignore_errors=True)
+    if f is None:
         return None
     _remove_loaded_libraries()
     return f
