@@ -536,6 +536,14 @@ def test_top_rate_term_known_answer():
     assert top(np.pi / 2, 8.0) == pytest.approx(2.0 - 1.5)
     off = SwingUpMPC(systems.cart_pendulum(), balance=False, weights={"top_rate": 0.0})
     assert float(off.ocp.stage_residual(np.array([0.0, np.pi, 0.0, 3.0]))[-1]) == 0.0
+    # by default off where the sequence balancer is chosen (kick 10*0.05/(0.8*0.7) = 0.89),
+    # on where the pulse balancer is (0.50), and as given when given
+    light = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
+    at_top = np.array([0.0, np.pi, 0.0, 2.5])
+    assert float(SwingUpMPC(light).ocp.stage_residual(at_top)[-1]) == 0.0
+    assert float(SwingUpMPC(systems.cart_pendulum()).ocp.stage_residual(at_top)[-1]) == 1.0
+    given = SwingUpMPC(light, weights={"top_rate": 4.0})
+    assert float(given.ocp.stage_residual(at_top)[-1]) == pytest.approx(2.0)
 
 
 @pytest.mark.slow
