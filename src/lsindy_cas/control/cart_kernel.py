@@ -43,6 +43,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from .._validate import check_int, check_real
+from .viability import check_system, min_max_value
 
 __all__ = ["CartPoleKernel", "cart_pole_kernel"]
 
@@ -95,21 +96,11 @@ class CartPoleKernel:
                  n_pole=40, n_cart=20, v_max=None, substeps=5, max_iter=600, tol=1e-4):
         from scipy.sparse import csr_matrix
         t0 = time.perf_counter()
-        a = np.asarray(a, dtype=float)
-        b = np.asarray(b, dtype=float).ravel()
-        if a.shape != (4, 4) or b.shape != (4,) or not (np.all(np.isfinite(a))
-                                                        and np.all(np.isfinite(b))):
-            raise ValueError("a must be a finite (4, 4) matrix and b a finite (4,) vector.")
+        a, b, self.dt, levels, self.angle_band, self.rate_band = check_system(
+            a, b, 4, dt, levels, angle_band, rate_band)
         if abs(b[3]) < 1e-12:
             raise ValueError("b must move the pole rate (b[3] != 0).")
-        self.dt = check_real("dt", dt, positive=True)
-        levels = np.asarray(levels, dtype=float).ravel()
-        if levels.size == 0 or not np.all(np.isfinite(levels)):
-            raise ValueError(f"levels must be a non-empty set of finite inputs, got "
-                             f"{levels.tolist()}.")
         self.levels = levels
-        self.angle_band = check_real("angle_band", angle_band, positive=True)
-        self.rate_band = check_real("rate_band", rate_band, positive=True)
         self.track = check_real("track", track, positive=True)
         self.n_pole = check_int("n_pole", n_pole, low=3)
         self.n_cart = check_int("n_cart", n_cart, low=3)
@@ -149,18 +140,12 @@ class CartPoleKernel:
             idx, w = self._stencil(z)
             maps.append(csr_matrix((w.ravel(), idx.ravel(), indptr), shape=(n, n)))
             del idx, w, z
-        J = g0.copy()
-        self.converged = False
-        for it in range(1, max_iter + 1):
+        def successors(J):
             for li, W in enumerate(maps):
                 succ[li] = W @ J
-            new = np.maximum(g0, np.maximum(gsub, succ).min(axis=0))
-            change = float(np.max(np.abs(new - J)))
-            J = new
-            if change < tol:
-                self.converged = True
-                break
-        self.iterations = it
+            return succ[None]                                              # (1, L, n)
+
+        J, self.converged, self.iterations = min_max_value(g0, gsub, successors, max_iter, tol)
         self.J = J.reshape(self.n_pole, self.n_pole, self.n_cart, self.n_cart)
         self.max_margin = float(-J.min())
         self.empty = self.max_margin < 0.0

@@ -46,6 +46,42 @@ from .._validate import check_int, check_real
 __all__ = ["ViabilityKernel", "pole_kernel", "pole_subsystem"]
 
 
+def check_system(a, b, n, dt, levels, angle_band, rate_band):
+    """``(a, b, dt, levels, angle_band, rate_band)`` of an ``n``-state kernel, checked: a finite
+    ``(n, n)`` matrix and ``(n,)`` vector, a positive period, a non-empty set of finite levels
+    and positive bands (ValueError naming the argument otherwise)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float).ravel()
+    if a.shape != (n, n) or b.shape != (n,) or not (np.all(np.isfinite(a))
+                                                    and np.all(np.isfinite(b))):
+        raise ValueError(f"a must be a finite ({n}, {n}) matrix and b a finite ({n},) vector.")
+    levels = np.asarray(levels, dtype=float).ravel()
+    if levels.size == 0 or not np.all(np.isfinite(levels)):
+        raise ValueError(f"levels must be a non-empty set of finite inputs, got "
+                         f"{levels.tolist()}.")
+    return (a, b, check_real("dt", dt, positive=True), levels,
+            check_real("angle_band", angle_band, positive=True),
+            check_real("rate_band", rate_band, positive=True))
+
+
+def min_max_value(g0, gsub, successors, max_iter, tol):
+    """Value iteration ``J <- max(g0, min_u max_d max(gsub, J(successor)))`` from ``J = g0``.
+
+    ``successors(J)`` gives ``J`` at the successors, shape ``(n_disturbances, n_levels, n)``;
+    ``gsub`` (broadcast to it) the largest excess inside each period.  Stops when the largest
+    change is below ``tol`` or after ``max_iter`` sweeps.  Returns ``(J, converged, sweeps)``.
+    """
+    J, converged = g0.copy(), False
+    for it in range(1, max_iter + 1):
+        new = np.maximum(g0, np.maximum(gsub, successors(J)).max(axis=0).min(axis=0))
+        change = float(np.max(np.abs(new - J)))
+        J = new
+        if change < tol:
+            converged = True
+            break
+    return J, converged, it
+
+
 def pole_subsystem(ode, cart_index, pole_index, upright):
     """The pole's linear dynamics at the upright from a cart-pendulum ODE.
 
@@ -131,19 +167,9 @@ class ViabilityKernel:
                  tol=1e-4):
         import time
         t0 = time.perf_counter()
-        a = np.asarray(a, dtype=float)
-        b = np.asarray(b, dtype=float).ravel()
-        if a.shape != (2, 2) or b.shape != (2,) or not (np.all(np.isfinite(a))
-                                                        and np.all(np.isfinite(b))):
-            raise ValueError("a must be a finite (2, 2) matrix and b a finite (2,) vector.")
-        self.dt = check_real("dt", dt, positive=True)
-        levels = np.asarray(levels, dtype=float).ravel()
-        if levels.size == 0 or not np.all(np.isfinite(levels)):
-            raise ValueError(f"levels must be a non-empty set of finite inputs, got "
-                             f"{levels.tolist()}.")
+        a, b, self.dt, levels, self.angle_band, self.rate_band = check_system(
+            a, b, 2, dt, levels, angle_band, rate_band)
         self.levels = levels
-        self.angle_band = check_real("angle_band", angle_band, positive=True)
-        self.rate_band = check_real("rate_band", rate_band, positive=True)
         self.substeps = check_int("substeps", substeps, low=1)
         self.n_grid = check_int("n_grid", n_grid, low=3)
         gains = np.asarray(gains, dtype=float).ravel()
@@ -198,17 +224,8 @@ class ViabilityKernel:
         rows = np.repeat(np.arange(idx.shape[0] * idx.shape[1] * n), 4)
         W = csr_matrix((wts.ravel(), (rows, idx.ravel())), shape=(rows.size // 4, n))
         shape = idx.shape[:3]
-        J = g0.copy()
-        self.converged = False
-        for it in range(1, max_iter + 1):
-            succ = (W @ J).reshape(shape)                                  # (G, L, n)
-            new = np.maximum(g0, np.maximum(gsub, succ).max(axis=0).min(axis=0))
-            change = float(np.max(np.abs(new - J)))
-            J = new
-            if change < tol:
-                self.converged = True
-                break
-        self.iterations = it
+        J, self.converged, self.iterations = min_max_value(
+            g0, gsub, lambda J: (W @ J).reshape(shape), max_iter, tol)    # (G, L, n)
         self.J = J.reshape(self.n_grid, self.n_grid)
         # per cell, the bilinear form J00 + ti (J10 - J00) + tj (J01 - J00 + ti (J11 - J10
         # - J01 + J00)) as one row of four numbers (one gather per evaluated state)
