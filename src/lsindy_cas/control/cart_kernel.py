@@ -38,12 +38,11 @@ from __future__ import annotations
 
 import time
 
-import casadi as ca
 import numpy as np
 from scipy.linalg import expm
 
 from .._validate import check_int, check_real
-from .viability import check_system, min_max_value
+from .viability import check_system, min_max_value, upright_jacobians
 
 __all__ = ["CartPoleKernel", "cart_pole_kernel"]
 
@@ -226,14 +225,7 @@ def cart_pole_kernel(ode, cart_index, pole_index, upright, dt, levels, **options
     -------
     CartPoleKernel
     """
-    xs, us = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
-    f = ca.Function("upright", [xs, us], [ca.jacobian(ode(xs, us), xs),
-                                          ca.jacobian(ode(xs, us), us)])
-    x0 = np.zeros(4)
-    x0[pole_index] = upright
-    Ac, Bc = (np.asarray(m, dtype=float) for m in f(x0, np.zeros(2)))
-    if not (np.all(np.isfinite(Ac)) and np.all(np.isfinite(Bc))):
-        raise ValueError("the model's dynamics are not finite at the upright.")
+    Ac, Bc = upright_jacobians(ode, pole_index, upright)
     order = [cart_index, pole_index, 2 + cart_index, 2 + pole_index]
     return CartPoleKernel(Ac[np.ix_(order, order)], Bc[order, cart_index], dt, levels,
                           **options)

@@ -77,18 +77,24 @@ def find_upright(ode, cart_index, pole_index, n_grid=720):
     return float(wrap_angle(angle))
 
 
+def _step_kick(step, cart_index, pole_index, upright, levels):
+    """Pole-rate change (rad/s) over one period of the largest of ``levels``, from rest at the
+    upright, from the discrete step ``step(x, u)`` linearised there (:meth:`SwingUpMPC.kick`)."""
+    x0 = np.zeros(4)
+    x0[pole_index] = upright
+    u = ca.SX.sym("u", 2)
+    jac = ca.Function("kick", [u], [ca.jacobian(step(x0, u), u)])
+    b = np.asarray(jac(np.zeros(2)), dtype=float)[2 + pole_index, cart_index]
+    return float(abs(b) * np.max(np.abs(np.asarray(levels, dtype=float))))
+
+
 def _upright_kick(ode, cart_index, pole_index, upright, dt, n_substeps, force_set):
     """:meth:`SwingUpMPC.kick` before the controller exists (0.0 if the arguments are bad:
     they are checked, with a clear error, when the controller is built)."""
     from .ocp import rk4_step
     try:
         step = rk4_step(ode, 4, 2, float(dt), int(n_substeps))
-        x0 = np.zeros(4)
-        x0[pole_index] = upright
-        u = ca.SX.sym("u", 2)
-        jac = ca.Function("kick", [u], [ca.jacobian(step(x0, u), u)])
-        b = np.asarray(jac(np.zeros(2)), dtype=float)[2 + pole_index, cart_index]
-        return float(abs(b) * np.max(np.abs(np.asarray(force_set, dtype=float))))
+        return _step_kick(step, cart_index, pole_index, upright, force_set)
     except (TypeError, ValueError, RuntimeError):
         return 0.0
 
@@ -316,13 +322,8 @@ class SwingUpMPC(DiscreteInputMPC):
     def kick(self):
         """The model's pole-rate change (rad/s) over one period of the largest force, from rest
         at the upright (first order: ``F dt / (m_c L)``), from the linearised discrete step."""
-        ic, ip = self.cart_index, self.pole_index
-        x0 = np.zeros(4)
-        x0[ip] = self.upright
-        u = ca.SX.sym("u", 2)
-        jac = ca.Function("kick", [u], [ca.jacobian(self.step_function(x0, u), u)])
-        b = np.asarray(jac(np.zeros(2)), dtype=float)[2 + ip, ic]
-        return float(abs(b) * np.max(np.abs(self.levels)))
+        return _step_kick(self.step_function, self.cart_index, self.pole_index, self.upright,
+                          self.levels)
 
     def reset(self):
         """Forget the warm start, the rounding memory and the balancer's mode (see

@@ -82,6 +82,20 @@ def min_max_value(g0, gsub, successors, max_iter, tol):
     return J, converged, it
 
 
+def upright_jacobians(ode, pole_index, upright):
+    """``(d xdot / dx, d xdot / du)`` of a cart-pendulum ODE ``(x (4,), u (2,)) -> xdot`` at
+    rest at the upright (ValueError if not finite there)."""
+    xs, us = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
+    f = ca.Function("upright", [xs, us], [ca.jacobian(ode(xs, us), xs),
+                                          ca.jacobian(ode(xs, us), us)])
+    x0 = np.zeros(4)
+    x0[pole_index] = upright
+    Ac, Bc = (np.asarray(m, dtype=float) for m in f(x0, np.zeros(2)))
+    if not (np.all(np.isfinite(Ac)) and np.all(np.isfinite(Bc))):
+        raise ValueError("the model's dynamics are not finite at the upright.")
+    return Ac, Bc
+
+
 def pole_subsystem(ode, cart_index, pole_index, upright):
     """The pole's linear dynamics at the upright from a cart-pendulum ODE.
 
@@ -104,14 +118,7 @@ def pole_subsystem(ode, cart_index, pole_index, upright):
         ``|d omega' / d x_dot|`` (1/s per m/s), the cart-speed term left out (0 without cart
         friction).
     """
-    xs, us = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
-    f = ca.Function("upright", [xs, us], [ca.jacobian(ode(xs, us), xs),
-                                          ca.jacobian(ode(xs, us), us)])
-    x0 = np.zeros(4)
-    x0[pole_index] = upright
-    Ac, Bc = (np.asarray(m, dtype=float) for m in f(x0, np.zeros(2)))
-    if not (np.all(np.isfinite(Ac)) and np.all(np.isfinite(Bc))):
-        raise ValueError("the model's dynamics are not finite at the upright.")
+    Ac, Bc = upright_jacobians(ode, pole_index, upright)
     ip, ic = pole_index, cart_index
     a = np.array([[Ac[ip, ip], Ac[ip, 2 + ip]], [Ac[2 + ip, ip], Ac[2 + ip, 2 + ip]]])
     b = np.array([Bc[ip, ic], Bc[2 + ip, ic]])
