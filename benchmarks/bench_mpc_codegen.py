@@ -50,15 +50,16 @@ def _capture_nlp():
 
 
 def record_solves(ctrl, starts, rng):
-    """Run episodes; return the warm solves' inputs (x, z0, lam_g0, lam_x0) and HPIPM outputs."""
+    """Run episodes; return the warm solves' inputs (NLP parameters, i.e. the state and the
+    input-gain estimate, z0, lam_g0, lam_x0) and HPIPM outputs."""
     nlp = ctrl.nlp
     solve = nlp.solve
     log = []
 
-    def logged(x_init, z0, lam_g0, lam_x0, kind="warm"):
-        out = solve(x_init, z0, lam_g0, lam_x0, kind)
+    def logged(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
+        out = solve(x_init, z0, lam_g0, lam_x0, kind, gain)
         if kind == "warm":
-            log.append((np.array(x_init, float), np.array(z0, float), np.array(lam_g0, float),
+            log.append((nlp.parameters(x_init, gain), np.array(z0, float), np.array(lam_g0, float),
                         np.array(lam_x0, float), out[1]))
         return out
 

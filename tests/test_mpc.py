@@ -197,7 +197,7 @@ def test_continued_recovery_warm_starts_from_the_failed_iterate(model):
     kinds = len(ctrl.stats.solve_kinds)
     seen = []
 
-    def failing(x_init, z0, lam_g0, lam_x0, kind="warm"):
+    def failing(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
         seen.append((kind, z0.copy()))
         z = z0.copy()
         z[ctrl.nlp._ic] = 1.0  # a marked iterate: every relaxed force 1 N
@@ -224,9 +224,9 @@ def test_cold_warm_solver_applies_its_iterate_and_counts_as_cold(model):
     kinds = []
     solve = ctrl.nlp.solve
 
-    def record(*args, kind="warm"):
+    def record(*args, kind="warm", **kw):
         kinds.append(kind)
-        return solve(*args, kind=kind)
+        return solve(*args, kind=kind, **kw)
 
     ctrl.nlp.solve = record
     ctrl(np.array([0.0, 0.3, 0.0, 0.0]))
@@ -499,9 +499,9 @@ def test_balanced_steps_skip_the_solve_and_keep_the_plan_aligned(model):
     seen = []
     solve = ctrl.nlp.solve
 
-    def record(x_init, z0, lam_g0, lam_x0, kind="warm"):
+    def record(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
         seen.append(z0.copy())
-        return solve(x_init, z0, lam_g0, lam_x0, kind=kind)
+        return solve(x_init, z0, lam_g0, lam_x0, kind=kind, gain=gain)
 
     ctrl.nlp.solve = record
     del ctrl._own_level  # back to the class's rule (None at this state: far from the top)
@@ -522,18 +522,24 @@ def test_solve_balanced_solves_every_step(model):
 
 def test_top_rate_term_known_answer():
     """The NLP's stage residual ends with sqrt(top_rate) * max(|theta_dot| cos^4((theta - pi)
-    / 2) - top_rate_band, 0): the pole rate beyond 1.5 rad/s counts near the top only."""
+    / 2) - top_rate_band, 0): the pole rate beyond three kicks (1.5 rad/s on the paper's plant,
+    F dt / (m_c L) = 10 * 0.05 / (1 * 1) = 0.5 rad/s to first order) counts near the top only."""
     from lsindy_cas import systems
     from lsindy_cas.mpc import SwingUpMPC
 
     ctrl = SwingUpMPC(systems.cart_pendulum(), balance=False)
+    band = SwingUpMPC.TOP_RATE_KICKS * ctrl.kick()
+    assert band == pytest.approx(1.5, rel=0.01)
     r = ctrl.ocp.stage_residual
     top = lambda theta, rate: float(r(np.array([0.0, theta, 0.0, rate]))[-1])  # noqa: E731
-    assert top(np.pi, 2.0) == pytest.approx(0.5)          # 1 * (2 - 1.5)
+    assert top(np.pi, 2.0) == pytest.approx(2.0 - band)   # 1 * (2 - band)
     assert top(np.pi, -1.4) == 0.0                         # inside the band
     assert top(0.0, 8.0) == pytest.approx(0.0, abs=1e-12)  # hanging: cos^4(pi/2) = 0
     # 90 degrees from the top: cos^4(pi/4) = 1/4, so 8 rad/s counts as 2
-    assert top(np.pi / 2, 8.0) == pytest.approx(2.0 - 1.5)
+    assert top(np.pi / 2, 8.0) == pytest.approx(2.0 - band)
+    # a heavier cart with a longer pole: a third of the kick, a third of the band
+    heavy = SwingUpMPC(systems.cart_pendulum(mc=2.0, mp=0.5, L=1.5), balance=False)
+    assert SwingUpMPC.TOP_RATE_KICKS * heavy.kick() == pytest.approx(0.5, rel=0.05)
     off = SwingUpMPC(systems.cart_pendulum(), balance=False, weights={"top_rate": 0.0})
     assert float(off.ocp.stage_residual(np.array([0.0, np.pi, 0.0, 3.0]))[-1]) == 0.0
     # by default off where the sequence balancer is chosen (kick 10*0.05/(0.8*0.7) = 0.89),
@@ -541,9 +547,12 @@ def test_top_rate_term_known_answer():
     light = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
     at_top = np.array([0.0, np.pi, 0.0, 2.5])
     assert float(SwingUpMPC(light).ocp.stage_residual(at_top)[-1]) == 0.0
-    assert float(SwingUpMPC(systems.cart_pendulum()).ocp.stage_residual(at_top)[-1]) == 1.0
-    given = SwingUpMPC(light, weights={"top_rate": 4.0})
-    assert float(given.ocp.stage_residual(at_top)[-1]) == pytest.approx(2.0)
+    assert float(SwingUpMPC(systems.cart_pendulum()).ocp.stage_residual(at_top)[-1]) == \
+        pytest.approx(2.5 - band)
+    given = SwingUpMPC(light, weights={"top_rate": 4.0})  # band: 3 kicks, 2.70 rad/s
+    fast = np.array([0.0, np.pi, 0.0, 3.5])
+    assert float(given.ocp.stage_residual(fast)[-1]) == pytest.approx(
+        2.0 * (3.5 - SwingUpMPC.TOP_RATE_KICKS * given.kick()))
 
 
 @pytest.mark.slow

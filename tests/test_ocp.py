@@ -102,6 +102,24 @@ def test_one_step_problem_reaches_the_hand_derived_optimum(solver, relaxation, o
     np.testing.assert_allclose(states[0], np.asarray(ocp.step(x0, [force])).ravel(), atol=1e-8)
 
 
+@pytest.mark.parametrize("gain", [0.5, -0.3])
+def test_input_gain_parameter_scales_the_plans_input(gain):
+    """``solve(..., gain=g)`` plans on ``x+ = F(x, (1 + g) u)`` (the online correction's input
+    gain, offset-free MPC): the planned state is the model's step under the scaled force, and
+    the force that reaches the same terminal speed shrinks by 1 + g."""
+    ocp = _ocp(lambda x: ca.DM.zeros(1), lambda x: x[1], 1, input_weight=1e-9)
+    nlp = MultipleShootingNLP(ocp, "continuous", "ipopt", max_iter=100, tol=1e-10)
+    x0 = np.array([0.0, 0.2])  # v_1 = 0.2 + DT (1 + g) u = 0 at u = -2 / (1 + g)
+    outcome, z, *_ = nlp.solve(x0, np.zeros(nlp.n_var), np.zeros(nlp.lbg.size),
+                               np.zeros(nlp.n_var), kind="cold", gain=gain)
+    assert outcome == "converged"
+    controls, states, _ = nlp.unpack(z)
+    force = controls[0, 0]
+    assert force == pytest.approx(-2.0 / (1.0 + gain), abs=1e-4)
+    np.testing.assert_allclose(states[0], np.asarray(ocp.step(x0, [(1 + gain) * force])).ravel(),
+                               atol=1e-8)
+
+
 def test_plans_satisfy_dynamics_input_and_state_bounds():
     """Drive the position towards 1 m with it bounded by 0.3 m: the soft bound with an exact
     penalty holds (to solver tolerance), every shooting gap closes and the inputs stay in the

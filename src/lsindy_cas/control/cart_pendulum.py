@@ -158,10 +158,11 @@ class SwingUpMPC(DiscreteInputMPC):
         "rate_band", "rate_band_weight", "top_rate", "top_rate_band"}`` (see
         :attr:`default_weights`); ``rate_band`` and ``rate_band_weight`` shape the lookahead's
         penalty on pole rates above ``rate_band`` near the top; ``top_rate`` weighs, in the
-        NLP's stage and terminal costs, the pole rate beyond ``top_rate_band`` (rad/s) scaled
-        by ``cos^4`` of half the angle from the upright, so that plans arrive at the top slowly
-        enough for the pulse balancer to catch them on a plant 10 % off the model; unless given,
-        it is 0 (off) where the sequence balancer is chosen (measured to cost success there).
+        NLP's stage and terminal costs, the pole rate beyond ``top_rate_band`` (rad/s; by
+        default :attr:`TOP_RATE_KICKS` of the model's kicks) scaled by ``cos^4`` of half the
+        angle from the upright, so that plans arrive at the top slowly enough for the pulse
+        balancer to catch them on a plant 10 % off the model; unless given, ``top_rate`` is 0
+        (off) where the sequence balancer is chosen (measured to cost success there).
     balance : bool or dict
         Near the upright, choose the force with :class:`~lsindy_cas.control.balancer.PulseBalancer`
         (an enumerated MPC over the push sequences themselves, on the model linearised at the
@@ -214,7 +215,10 @@ class SwingUpMPC(DiscreteInputMPC):
     default_weights = {"angle": 10.0, "position": 1.0, "velocity": 0.1, "rate": 0.1,
                        "terminal": 10.0, "input": 1e-2,
                        "rate_band": 0.35, "rate_band_weight": 1e3,
-                       "top_rate": 1.0, "top_rate_band": 1.5}
+                       "top_rate": 1.0, "top_rate_band": None}
+
+    #: default ``top_rate_band``: this many of the model's kicks (1.5 rad/s on the paper plant)
+    TOP_RATE_KICKS = 3.0
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
@@ -254,10 +258,12 @@ class SwingUpMPC(DiscreteInputMPC):
                              f"{sorted(self.default_weights)}.")
         w = dict(self.default_weights, **(weights or {}))
         kind, balance_options = _balancer_kind(balance)  # checked before the NLP is built
+        kick = _upright_kick(ode, ic, ip, self.upright, dt, options.get("n_substeps", 1),
+                             force_set)
+        if w["top_rate_band"] is None:  # a plant-dependent rate: TOP_RATE_KICKS pushes' worth
+            w["top_rate_band"] = self.TOP_RATE_KICKS * kick
         if "top_rate" not in (weights or {}) and (
-                kind is SequenceBalancer or (kind == "auto" and _upright_kick(
-                    ode, ic, ip, self.upright, dt, options.get("n_substeps", 1), force_set)
-                    >= self.SEQUENCE_KICK)):
+                kind is SequenceBalancer or (kind == "auto" and kick >= self.SEQUENCE_KICK)):
             # the top-rate term was measured to help the pulse balancer's plants (paper plant:
             # no mismatched start lost with fatrop) and to hurt the sequence balancer's (MuJoCo
             # light cart: 20/20 -> 16/20): by default it is on only for the former
@@ -293,6 +299,7 @@ class SwingUpMPC(DiscreteInputMPC):
                          dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
                          input_weight=w["input"], **options)
         self.cart_index, self.pole_index = ic, ip
+        self.plan_gain_index = 2 + ip  # the plan uses the pole's input gain (adapt_plan)
         self.guard = None
         if guard is not False:
             self.guard = TrackGuard(self.step_function, self.levels, cart_index=ic,

@@ -108,12 +108,9 @@ class DiscreteInputMPC:
         is fatrop where CasADi has it, else IPOPT: fatrop exploits the stage structure and
         reaches IPOPT's optimum in about a third of the time (issue 16: recovery solves
         median 53 -> 17 ms CPU on a loaded machine); it runs under a watchdog
-        (:func:`~lsindy_cas.control.shooting.default_robust_solver`).
-        ``"continue"`` halves the step
-        time's p99 (no IPOPT after most failures) but applies stale plans more often: it
-        loses starts with the plant 10 % off that ``"ipopt"`` catches (issue 16, README).  Either way a
-        failed step applies the shifted previous plan (a failed iterate is continued only if
-        finite and within 1 of feasibility).
+        (:func:`~lsindy_cas.control.shooting.default_robust_solver`).  Either way a failed
+        step applies the shifted previous plan (a failed iterate is continued only if finite
+        and within 1 of feasibility).
     cold : {"fatrop", "ipopt", "warm"}, optional
         Solver of the first step of an episode, from a rolled-out guess: the warm solver
         (``"warm"``: at most ``max_iter`` iterations, its iterate applied if finite,
@@ -132,6 +129,10 @@ class DiscreteInputMPC:
         RLS forgetting factor in (0, 1].
     adapt_max_gain : float
         Bound on ``|gain|``.
+    adapt_plan : bool
+        Whether the relaxed plan's dynamics use the correction's input gain as well: the
+        NLP applies ``(1 + gain) * u`` with ``gain`` the estimate of the state component
+        :attr:`plan_gain_index` (by default the actuated coordinate's velocity).
     solve_balanced : bool
         Whether to solve the relaxed NLP also on steps whose level a subclass's own rule
         decides (:class:`~lsindy_cas.mpc.SwingUpMPC`: the balancer near the upright), only to
@@ -164,7 +165,7 @@ class DiscreteInputMPC:
                  max_iter=10, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
                  lookahead_penalty=None, recovery=None, cold=None,
                  recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5,
-                 solve_balanced=False, jit=False):
+                 adapt_plan=True, solve_balanced=False, jit=False):
         self.ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt, horizon,
                        state_lb, state_ub, input_weight, n_substeps, levels_name="force_set")
         self.solver = check_choice("solver", solver, SOLVERS)
@@ -213,6 +214,8 @@ class DiscreteInputMPC:
         self.correction = (InputGainCorrection(self.step_function, self.input_index,
                                                forgetting=forgetting, max_gain=max_gain)
                            if self.adapt else None)
+        self.adapt_plan = bool(adapt_plan) and self.adapt
+        self.plan_gain_index = self.n_state // 2 + self.input_index
         self.stats = MPCStats()
         self.reset()
 
@@ -401,7 +404,9 @@ class DiscreteInputMPC:
         """:meth:`MultipleShootingNLP.solve` and its status (``"exception"`` when the solver
         raised, e.g. NaN in a function evaluation of a bad model)."""
         try:
-            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind), self.nlp.last_status)
+            gain = self.correction.gain[self.plan_gain_index] if self.adapt_plan else 0.0
+            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, gain=gain),
+                    self.nlp.last_status)
         except RuntimeError:
             return "failed", z0, lam_g0, lam_x0, -1, "exception"
 

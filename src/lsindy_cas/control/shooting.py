@@ -121,11 +121,14 @@ class MultipleShootingNLP:
         n_s = 1 if bounded else 0  # one slack per stage softens every state bound
 
         sym = ca.SX  # expanded: the oracle functions run in CasADi's fast SX virtual machine
-        p = sym.sym("x0", n_state)
+        x_init = sym.sym("x0", n_state)
+        # the online correction's input gain (0: the model as identified): u -> (1 + gain) u
+        gain = sym.sym("gain")
+        p = ca.vertcat(x_init, gain)
         cs = [sym.sym(f"c{k}", n_c) for k in range(horizon)]
         # x_0 is given, so stage 0 has no slack: ss[k] softens the bounds of x_k, k >= 1
         ss = [sym.sym(f"s{k}", n_s if k > 0 else 0) for k in range(horizon)]
-        xs = [p] + [sym.sym(f"x{k}", n_state) for k in range(1, horizon + 1)]
+        xs = [x_init] + [sym.sym(f"x{k}", n_state) for k in range(1, horizon + 1)]
         z, g, f = [], [], 0
         lbg, ubg, rows = [], [], []
         residuals = []  # for the Gauss-Newton Hessian
@@ -150,7 +153,7 @@ class MultipleShootingNLP:
                 else:
                     force = c[0]
                     penalty = (c[0] / scale) ** 2
-                u = ocp.full_input(force)
+                u = ocp.full_input((1 + gain) * force)
                 z += [c, ss[k], xs[k + 1]]
                 gap = xs[k + 1] - step(xs[k], u)  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
                 stage_g.append(-gap if solver.startswith("sqp") else gap)
@@ -292,7 +295,7 @@ class MultipleShootingNLP:
                 ls[cur] = lam_g[nxt[: cur.size]]
         return zs, ls
 
-    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm"):
+    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
         """Solve from state ``x_init`` with a warm start.
 
         Parameters
@@ -302,6 +305,9 @@ class MultipleShootingNLP:
             Primal and dual initial guesses.
         kind : {"warm", "recover", "cold"}
             Which solver of :attr:`solvers` to use.
+        gain : float
+            Input-gain error of the model (the plan's dynamics apply ``(1 + gain) * u``; an
+            online correction's estimate, 0 for the model as it is).
 
         Returns
         -------
@@ -313,6 +319,7 @@ class MultipleShootingNLP:
         iters : int
         """
         solver = self.solvers[kind]
+        x_init = self.parameters(x_init, gain)
         if self._plugin[kind] == "fatrop" and not self._usable_guess(z0, x_init):
             self.last_status, self.last_violation = "unusable_guess", np.inf
             return "failed", z0, lam_g0, lam_x0, 0
@@ -365,14 +372,18 @@ class MultipleShootingNLP:
             lam_g = self._flip_gaps(lam_g)
         return outcome, z, lam_g, np.asarray(res["lam_x"]).ravel(), iters
 
-    def _usable_guess(self, z, x_init):
+    def parameters(self, x_init, gain=0.0):
+        """The NLP's parameter vector: the initial state and the input-gain error."""
+        return np.append(np.asarray(x_init, dtype=float).ravel(), float(gain))
+
+    def _usable_guess(self, z, p):
         """Whether ``z`` is a guess fatrop can start from: the cost and constraints are finite
         there (the model evaluates) and no shooting gap exceeds ``GUESS_GAP`` state units.
 
         fatrop loops without end inside its linear solver from either kind of guess (a NaN
         evaluation; a diverged plan whose gaps were 1e82), where IPOPT stops at once.
         """
-        f, g = self._fg(z, x_init)
+        f, g = self._fg(z, p)
         g = np.asarray(g, dtype=float).ravel()
         if not (np.isfinite(float(f)) and np.all(np.isfinite(g))):
             return False
