@@ -5,7 +5,9 @@ On the upright linearisation ``x'' = a_x phi + b_x u``, ``phi'' = omega2 phi + b
     w = x_dot - (a_x / omega2) * theta_dot
 
 obeys ``w' = (b_x - a_x b_p / omega2) u``: gravity and the pole's lean do not move it, only
-pushes do, each 10 N push of 50 ms by ``dw = |b_x - a_x b_p / omega2| F dt``.  Where one push
+pushes do, each 10 N push of 50 ms by ``dw = |b_x - a_x b_p / omega2| F dt``.  ``w`` is the
+horizontal speed of the centre of mass (linearised): only the cart force changes horizontal
+momentum, so ``dw = F dt / (m_c + m_p)``.  Where one push
 changes the pole rate by nearly the success band's width (kick 0.83-0.89 rad/s against
 |theta_dot| < 0.5), pushes must alternate in sign, so while the pole is balanced ``w`` takes
 only two values, ``w_lo`` and ``w_lo + dw``, and the cart's speed (``w`` plus a small multiple of
