@@ -231,7 +231,8 @@ def test_cold_warm_solver_applies_its_iterate_and_counts_as_cold(model):
     ctrl.nlp.solve = record
     ctrl(np.array([0.0, 0.3, 0.0, 0.0]))
     assert kinds == ["warm"] and ctrl.stats.solve_kinds == ["cold"]
-    ctrl.nlp.solve = lambda x, z0, lg, lx, kind="warm": ("failed", z0 * 0 + 2.0, lg, lx, 10)
+    ctrl.nlp.solve = (lambda x, z0, lg, lx, kind="warm", gain=0.0:
+                      ("failed", z0 * 0 + 2.0, lg, lx, 10))
     ctrl.nlp.last_violation = 0.0
     ctrl.reset()
     failures = ctrl.stats.n_failures
