@@ -16,6 +16,11 @@ choose how long the cart spends at each.  The *phase* ``(w / dw) mod 1`` at the 
 whether the two speeds straddle zero (phase 0.5: +-dw/2) or one of them is zero (phase 0: the
 cart can stand still or move one way only).
 
+More than that: ``w`` is the horizontal speed of the centre of mass, and on a frictionless
+track only the cart force changes horizontal momentum, ``(m_c + m_p) v_com = (m_c + m_p) x_dot +
+m_p L cos(theta) theta_dot``, always by a multiple of ``F dt``: the phase is the *start's*
+(``start_phase``), kept through the whole swing-up by any controller with these three levels.
+
 This script runs the swing-up from random starts on one plant, records ``w`` at the first step
 the balancer decides, how many distinct values ``w`` takes while balancing, and whether the
 episode succeeds; it prints success by hand-over phase.
@@ -147,7 +152,9 @@ def main(argv=None):
         levels, counts = (np.unique(np.round(ws, 2), return_counts=True) if ws.size
                           else (np.array([]), np.array([], dtype=int)))
         top2 = float(np.sort(counts)[-2:].sum() / counts.sum()) if counts.size else None
+        v_com = x0[2] + mp * L * np.cos(x0[1]) * x0[3] / (mc + mp)  # exact
         row = {"start": i, "success": ok, "time_to_upright": t_up, "track_used": used,
+               "start_phase": float((v_com / dw) % 1.0),
                "handover_t": None if hand is None else hand[0],
                "handover_w": None if hand is None else float(hand[1]),
                "phase": None if hand is None else float((hand[1] / dw) % 1.0),
@@ -175,6 +182,11 @@ def main(argv=None):
              "the linear range): " + ", ".join(
                  "-" if r["share_two_levels"] is None else f"{100 * r['share_two_levels']:.0f} %"
                  for r in rows) + "."]
+    gaps = [abs((r["phase"] - r["start_phase"] + 0.5) % 1.0 - 0.5) for r in rows
+            if r["phase"] is not None]
+    if gaps:
+        lines.append(f"Phase at the hand-over minus phase of the start's centre-of-mass speed: "
+                     f"at most {max(gaps):.4f} over the {len(gaps)} hand-overs.")
     checks = []
     for n in horizons:
         value, proven, secs = least_slow_speed(system.ode(), n)

@@ -40,3 +40,22 @@ def test_one_period_cannot_move_the_slow_speed_beyond_the_leans_effect():
     assert proven
     assert 0.45 < value <= 0.5 + 1e-9
     assert np.isfinite(value)
+
+
+def test_only_the_cart_force_changes_the_horizontal_momentum():
+    """T = (m_c + m_p) x_dot^2 / 2 + m_p L^2 theta_dot^2 / 2 + m_p L x_dot theta_dot cos(theta):
+    p_x = dT/dx_dot = (m_c + m_p) x_dot + m_p L theta_dot cos(theta) obeys dp_x/dt = F (gravity
+    is vertical, the track frictionless), so after any sequence of {-10, 0, 10} N pushes of
+    50 ms p_x has moved by exactly sum(F) dt: its phase modulo 10 N x 50 ms never changes."""
+    from lsindy_cas.paper.swingup import Plant
+
+    mc, mp, L = 0.5, 0.05, 1.2
+    plant = Plant(systems.cart_pendulum(mc=mc, mp=mp, L=L), 0.05)
+    rng = np.random.default_rng(3)
+    x = np.array([0.1, 2.0, -0.4, 1.5])
+    p_x = (lambda s: (mc + mp) * s[2] + mp * L * s[3] * np.cos(s[1]))  # noqa: E731
+    p0, impulse = p_x(x), 0.0
+    for force in rng.choice([-10.0, 0.0, 10.0], size=60):
+        x = plant.step(x, force)[-1]
+        impulse += force * 0.05
+    assert p_x(x) - p0 == pytest.approx(impulse, abs=1e-6)
