@@ -60,6 +60,11 @@ CONFIGS = {
     "sqp+inexact1e-3+cap8": ({"solver": "sqp", "relaxation": "continuous",
                               "rounding": "lookahead", "inexact_tol": 1e-3, "max_iter": 8},
                              "as sqp+inexact1e-3, at most 8 SQP iterations per step"),
+    "sqp+cap10": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                   "max_iter": 10}, "at most 10 warm SQP iterations per step (default before "
+                  "stop 25; 7 since)"),
+    "sqp+cap8": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                  "max_iter": 8}, "at most 8 warm SQP iterations per step"),
     "sqp+continue": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                       "cold": "warm", "recovery": "continue"},
                      "SQP cold start, failed iterates continued, IPOPT after 3 failures"),
