@@ -574,3 +574,18 @@ def test_a_heavier_cart_and_longer_pole_is_caught_not_spun_around():
     assert factors == [1.1, 0.9, 1.1]
     ep = run_episode(ctrl, plant, x0)
     assert ep.success and ep.time_to_upright < 4.0
+
+
+def test_warm_sqp_cap_is_7_with_the_pulse_balancer_and_10_with_the_sequence_one():
+    """The cap of 7 (p99 under 20 ms on the paper plant) is the default where the pulse
+    balancer is chosen (kick 0.50 rad/s); where the sequence balancer is (kick 0.89), 10, as
+    measured on the family; an explicit max_iter wins."""
+    from lsindy_cas import systems
+    from lsindy_cas.mpc import SwingUpMPC
+
+    light = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
+    assert SwingUpMPC(systems.cart_pendulum()).nlp.max_iters["warm"] == 7
+    assert SwingUpMPC(light).nlp.max_iters["warm"] == SwingUpMPC.SEQUENCE_MAX_ITER == 10
+    assert SwingUpMPC(systems.cart_pendulum(),
+                      balance={"method": "sequence"}).nlp.max_iters["warm"] == 10
+    assert SwingUpMPC(light, max_iter=5).nlp.max_iters["warm"] == 5
