@@ -136,11 +136,15 @@ def main(argv=None):
         mc, mp, L = (float(v) for v in args.plant.split("/"))
     except ValueError:
         ap.error(f"--plant must be m_c/m_p/L, got {args.plant!r}")
+    if not min(mc, mp, L) > 0:
+        ap.error(f"--plant masses and length must be positive, got {args.plant!r}")
     if args.starts < 1:
         ap.error("--starts must be >= 1")
     out = Path(args.out)
-    if not out.is_dir():
-        ap.error(f"--out {out}: no such folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        ap.error(f"--out {out}: {e.strerror}")
     t0 = time.perf_counter()
     system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
     model = system if args.model == "exact" else identify_cart_pendulum(system)[0]
