@@ -109,10 +109,11 @@ def episode(ctrl, plant, x0, coef, t_end=10.0):
             ws.append(x[2] - coef * x[3])
             if hand is None:
                 hand = (k * DT, ws[-1])
-        x = plant.step(x, force)[-1]
-        states.append(x)
-    X = np.array(states)
-    ok, t_up, used = evaluate(np.arange(len(X)) * DT, X)
+        fine = plant.step(x, force)  # the plant's states within the period, as run_episode
+        states.append(fine)
+        x = fine[-1]
+    X = np.vstack(states)  # success judged on every fine sample (between the periods too)
+    ok, t_up, used = evaluate(np.arange(len(X)) * DT / plant.n_out, X, t_end=t_end)
     return ok, t_up, used, hand, np.array(ws)
 
 
