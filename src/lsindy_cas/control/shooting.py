@@ -319,14 +319,14 @@ class MultipleShootingNLP:
         iters : int
         """
         solver = self.solvers[kind]
-        x_init = self.parameters(x_init, gain)
-        if self._plugin[kind] == "fatrop" and not self._usable_guess(z0, x_init):
+        p = self.parameters(x_init, gain)  # the NLP parameters: state and gain
+        if self._plugin[kind] == "fatrop" and not self._usable_guess(z0, p):
             self.last_status, self.last_violation = "unusable_guess", np.inf
             return "failed", z0, lam_g0, lam_x0, 0
         flip = self._flip[kind]
         if flip:  # the gap rows' multipliers change sign with the rows
             lam_g0 = self._flip_gaps(lam_g0)
-        args = dict(x0=z0, p=x_init, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg,
+        args = dict(x0=z0, p=p, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg,
                     lam_g0=lam_g0, lam_x0=lam_x0)
         if self._plugin[kind] == "fatrop":  # under a time limit: it has looped without end
             finished, res = self.watchdog.call(solver, **args)
