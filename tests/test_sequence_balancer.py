@@ -129,3 +129,49 @@ def test_escape_penalty_known_answer(corner):
         SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
                          pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05,
                          escape_weight=-1.0)
+
+
+@pytest.fixture(scope="module")
+def light():
+    """0.5/0.05/1.2: omega = sqrt((m_c + m_p) g / (m_c L)) = 3.0 rad/s, kick 0.84 rad/s."""
+    system = systems.cart_pendulum(mc=0.5, mp=0.05, L=1.2)
+    return system, SwingUpMPC(system)
+
+
+def test_cart_speed_term_is_the_centre_of_mass_speed(light, corner):
+    """Gravity turns the pole back inside the band (|phi| < 0.1) only if omega * 0.1 >= kick -
+    0.5: 3.0 * 0.1 < 0.84 - 0.5 on the light plant (term on), 4.19 * 0.1 >= 0.89 - 0.5 on the
+    corner (off).  The term's speed is the centre of mass's, x_dot - m_p L / (m_c + m_p)
+    theta_dot at the upright (hand-derived), so the lean does not move it."""
+    system, ctrl = light
+    b = ctrl.balancer
+    assert isinstance(b, SequenceBalancer) and not b.turnaround
+    assert b.speed_weight == SequenceBalancer.SPEED_WEIGHT
+    assert corner[1].balancer.turnaround and corner[1].balancer.speed_weight == 0.0
+    args = (ctrl.step_function, system.ode(), ctrl.levels)
+    kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
+    off = SequenceBalancer(*args, speed_weight=0.0, **kw)
+    on = SequenceBalancer(*args, speed_weight=2.0, speed_time=4.0, **kw)
+    tw = np.array([1.0 / 4.0, 0.0, 1.0, -0.05 * 1.2 / 0.55])
+    np.testing.assert_allclose((on.Q - off.Q) / (2.0 * 0.05), np.outer(tw, tw), rtol=1e-9,
+                               atol=1e-12)
+    assert abs(tw[2:] @ on.Ac[2:, 1]) < 1e-9            # the lean does not change w
+    # one push of 10 N for 50 ms moves it by F dt / (m_c + m_p) = 0.909 m/s
+    assert tw[2:] @ on.B[2:] * 10.0 == pytest.approx(10.0 * 0.05 / 0.55, rel=1e-3)
+    with pytest.raises(ValueError, match="speed_weight"):
+        SequenceBalancer(*args, speed_weight=-1.0, **kw)
+    with pytest.raises(ValueError, match="speed_time"):
+        SequenceBalancer(*args, speed_time=0.0, **kw)
+
+
+@pytest.mark.slow
+def test_cart_speed_term_keeps_the_light_cart_on_the_track(light):
+    """Start 11 of the family benchmark on 0.5/0.05/1.2 (exact model): without the term the
+    cart creeps to the track's margin and the pole leaves the band in the last 3 s; with it
+    the episode succeeds."""
+    from lsindy_cas.paper.swingup import random_starts, run_episode
+    system, ctrl = light
+    x0 = random_starts(20, 0)[11]
+    assert run_episode(ctrl, Plant(system, 0.05), x0).success
+    off = SwingUpMPC(system, balance={"method": "sequence", "speed_weight": 0.0})
+    assert not run_episode(off, Plant(system, 0.05), x0).success

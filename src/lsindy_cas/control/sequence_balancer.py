@@ -38,14 +38,10 @@ of well under a second this is what makes the plan lean the pole so that the car
 to the centre (the DARE value of the full linearisation, computed for a continuous force,
 does not: it expects the cart to be returned by force).
 
-The escape term: between pushes the pole alone obeys ``phi'' = omega2 * phi`` on the
-linearisation, so ``E = theta_dot^2 - omega2 * phi^2`` is conserved; a push keeps the rate in the
-band only once ``|theta_dot| >= kick - rate_band``, which the pole reaches at the lean
-``phi*^2 = ((kick - rate_band)^2 - E) / omega2``.  When the kick is nearly the band's width, a
-pole left nearly at rest (low ``E``) can only be caught after a lean beyond the angle band, later
-than the horizon sees; the term makes the plan keep the pole swinging instead.  It is off by
-default (``escape_weight=0``): on the 0.8/0.2/0.7 and 0.7/0.4/0.8 plants with +-10 % mismatch
-it turned falls into narrow misses (26/40 against 23/40) but cost 2/20 nominal starts.
+The escape term (off by default, ``escape_weight=0``): between pushes ``E = theta_dot^2 - omega2 *
+phi^2`` is conserved, and a push keeps the rate in the band only once ``|theta_dot| >= kick -
+rate_band``, reached at the lean ``phi*^2 = ((kick - rate_band)^2 - E) / omega2``; the term
+penalises ``phi*`` beyond the angle band (measured: docs/history/control.md).
 
 Viability: on the upright linearisation without cart friction the pole ``(phi, theta_dot)``
 does not depend on the cart, so whether it can be kept in the success band for ever is a 2-D
@@ -62,6 +58,11 @@ share of the usable track; ``viability_cart``).  A kernel robust over input gain
 empty for a 0.89 rad/s plant, so mismatch uses the model's own kernel (``viability_schedule``:
 one kernel per gain factor, picked by the online correction).  Measurements and the settings
 tried: docs/history/control.md.
+
+The cart's speed ``w = x_dot - (a_x / omega2) theta_dot`` (the centre of mass's, linearised) moves
+with the pushes only.  Where gravity cannot turn the pole back inside the success band (``omega *
+0.1 < kick - 0.5``), pushes strictly alternate and the cart's mean speed is set by the time spent
+between them, not by a lean: the stage cost gets ``speed_weight * dt * (w + x / speed_time)^2``.
 
 The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
 rate change over one push of the largest force from rest at the upright: a band narrower than
@@ -132,6 +133,11 @@ class SequenceBalancer(PulseBalancer):
         The margin asked for at every predicted state, as a share of the largest one.
     viability_cart : bool
         Fade the kernel term as the cart needs the lean to stop (:meth:`cart_urgency`).
+    speed_weight : float, optional
+        Weight of the cart-speed term (module docstring); None: ``SPEED_WEIGHT`` if
+        :attr:`turnaround` is False, else 0.
+    speed_time : float
+        Time (s) in which that term asks the cart to return: the target speed is ``-x / speed_time``.
     viability_schedule : sequence of float, optional
         Input-gain factors to build one kernel each for at construction; each plan uses the
         one nearest to the online correction's estimate ``1 + gain`` of the pole rate.
@@ -144,6 +150,8 @@ class SequenceBalancer(PulseBalancer):
     ----------
     kick : float
         The model's pole-rate change (rad/s) over one push of the largest force at the upright.
+    turnaround : bool
+        Whether gravity can reverse the pole's rate inside the success band between pushes.
     kernel : ViabilityKernel or None
         The pole's viability kernel the last plan used (``kernels``: all, by gain factor).
     proven : bool
@@ -156,6 +164,10 @@ class SequenceBalancer(PulseBalancer):
         Level indices of the last best sequence.
     """
 
+    #: weight of the cart-speed term where the pole cannot turn around inside the band
+    #: (0.5/0.05/1.2: 8/20 -> 13/20 nominal starts; docs/history/control.md)
+    SPEED_WEIGHT = 300.0
+
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=16, max_frontier=500, rate_band=None, violation_weight=1e4,
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
@@ -163,7 +175,7 @@ class SequenceBalancer(PulseBalancer):
                  escape_weight=0.0, viability=True, viability_weight=1.0,
                  viability_margin=0.25, viability_gains=(1.0,), viability_stage=0.5,
                  viability_schedule=None, viability_stage_margin=0.25, viability_cart=True,
-                 **options):
+                 speed_weight=None, speed_time=2.0, **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
@@ -227,6 +239,16 @@ class SequenceBalancer(PulseBalancer):
         T[1, 2 + self.ic], T[1, 2 + self.ip] = 1.0, -self.ratio
         self.P = self.P + self.centre_weight * T.T @ Pc @ T
         self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
+        # the cart's speed term (module docstring): w = x_dot - (a_x / omega2) theta_dot
+        self.turnaround = bool(np.sqrt(max(self.omega2, 0.0)) * 0.1 >= self.kick - 0.5)
+        if speed_weight is None:
+            speed_weight = 0.0 if self.turnaround else self.SPEED_WEIGHT
+        self.speed_weight = check_real("speed_weight", speed_weight, nonnegative=True)
+        tw = np.zeros(4)
+        tw[self.ic] = 1.0 / check_real("speed_time", speed_time, positive=True)
+        tw[2 + self.ic] = 1.0
+        tw[2 + self.ip] = -self.Ac[2 + self.ic, self.ip] / max(self.omega2, 1e-12)
+        self.Q = self.Q + self.speed_weight * self.dt * np.outer(tw, tw)
         # the pole's viability kernel on the model's upright linearisation (module docstring)
         if not isinstance(viability, bool):
             raise TypeError(f"viability must be True or False, got {viability!r}.")
@@ -243,20 +265,9 @@ class SequenceBalancer(PulseBalancer):
         self._kernel_w = self.viability_weight * self.violation_weight
         self.kernel, self.kernels = None, {}
         if viability:
-            from .viability import pole_kernel
-            gains = np.asarray(viability_gains, dtype=float).ravel()
-            factors = (1.0,) if viability_schedule is None else viability_schedule
-            try:
-                factors = sorted({float(f) for f in factors})
-            except (TypeError, ValueError):
-                raise ValueError(f"viability_schedule must be positive gain factors, got "
-                                 f"{viability_schedule!r}.") from None
-            if not factors or min(factors) <= 0:
-                raise ValueError(f"viability_schedule must be positive gain factors, got "
-                                 f"{viability_schedule!r}.")
-            for f in factors:
-                self.kernels[f] = pole_kernel(ode, self.ic, self.ip, upright, self.dt,
-                                              self.levels, gains=f * gains)
+            from .viability import kernel_schedule
+            self.kernels = kernel_schedule(ode, self.ic, self.ip, upright, self.dt, self.levels,
+                                           viability_schedule, viability_gains)
         self._use_kernel(1.0)
 
     def reset(self):

@@ -43,7 +43,7 @@ from scipy.linalg import expm
 
 from .._validate import check_int, check_real
 
-__all__ = ["ViabilityKernel", "pole_kernel", "pole_subsystem"]
+__all__ = ["ViabilityKernel", "kernel_schedule", "pole_kernel", "pole_subsystem"]
 
 
 def check_system(a, b, n, dt, levels, angle_band, rate_band):
@@ -318,3 +318,17 @@ def pole_kernel(ode, cart_index, pole_index, upright, dt, levels, **options):
     kernel = ViabilityKernel(a, b, dt, levels, **options)
     kernel.coupling = coupling
     return kernel
+
+
+def kernel_schedule(ode, cart_index, pole_index, upright, dt, levels, schedule=None, gains=(1.0,)):
+    """One :func:`pole_kernel` per input-gain factor of ``schedule`` (default ``(1.0,)``), each
+    robust over ``factor * gains``; a dict ``{factor: kernel}``."""
+    gains = np.asarray(gains, dtype=float).ravel()
+    try:
+        factors = sorted({float(f) for f in ((1.0,) if schedule is None else schedule)})
+    except (TypeError, ValueError):
+        factors = []
+    if not factors or min(factors) <= 0:
+        raise ValueError(f"viability_schedule must be positive gain factors, got {schedule!r}.")
+    return {f: pole_kernel(ode, cart_index, pole_index, upright, dt, levels, gains=f * gains)
+            for f in factors}
