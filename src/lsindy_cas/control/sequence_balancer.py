@@ -78,6 +78,7 @@ import numpy as np
 from .._validate import check_int, check_real
 from .balancer import PulseBalancer
 from .mpc import wrap_angle
+from .viability import BAND, kernel_schedule
 
 __all__ = ["SequenceBalancer"]
 
@@ -137,7 +138,7 @@ class SequenceBalancer(PulseBalancer):
         Weight of the cart-speed term (module docstring); None: ``SPEED_WEIGHT`` if
         :attr:`turnaround` is False, else 0.
     speed_time : float
-        Time (s) in which that term asks the cart to return: the target speed is ``-x / speed_time``.
+        Time (s) in which that term returns the cart (target speed ``-x / speed_time``).
     viability_schedule : sequence of float, optional
         Input-gain factors to build one kernel each for at construction; each plan uses the
         one nearest to the online correction's estimate ``1 + gain`` of the pole rate.
@@ -240,7 +241,7 @@ class SequenceBalancer(PulseBalancer):
         self.P = self.P + self.centre_weight * T.T @ Pc @ T
         self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
         # the cart's speed term (module docstring): w = x_dot - (a_x / omega2) theta_dot
-        self.turnaround = bool(np.sqrt(max(self.omega2, 0.0)) * 0.1 >= self.kick - 0.5)
+        self.turnaround = bool(np.sqrt(max(self.omega2, 0.0)) * BAND[0] >= self.kick - BAND[1])
         if speed_weight is None:
             speed_weight = 0.0 if self.turnaround else self.SPEED_WEIGHT
         self.speed_weight = check_real("speed_weight", speed_weight, nonnegative=True)
@@ -265,7 +266,6 @@ class SequenceBalancer(PulseBalancer):
         self._kernel_w = self.viability_weight * self.violation_weight
         self.kernel, self.kernels = None, {}
         if viability:
-            from .viability import kernel_schedule
             self.kernels = kernel_schedule(ode, self.ic, self.ip, upright, self.dt, self.levels,
                                            viability_schedule, viability_gains)
         self._use_kernel(1.0)

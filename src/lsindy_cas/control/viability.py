@@ -43,7 +43,10 @@ from scipy.linalg import expm
 
 from .._validate import check_int, check_real
 
-__all__ = ["ViabilityKernel", "kernel_schedule", "pole_kernel", "pole_subsystem"]
+__all__ = ["BAND", "ViabilityKernel", "kernel_schedule", "pole_kernel", "pole_subsystem"]
+
+#: the success band ``(|phi| <, |theta_dot| <)`` (rad, rad/s) a kernel holds the pole in by default
+BAND = (0.1, 0.5)
 
 
 def check_system(a, b, n, dt, levels, angle_band, rate_band):
@@ -169,7 +172,7 @@ class ViabilityKernel:
 
     coupling = 0.0
 
-    def __init__(self, a, b, dt, levels, *, angle_band=0.1, rate_band=0.5, substeps=5,
+    def __init__(self, a, b, dt, levels, *, angle_band=BAND[0], rate_band=BAND[1], substeps=5,
                  n_grid=121, gains=(1.0,), disturbance=1e-3, max_iter=200,
                  tol=1e-4):
         import time
