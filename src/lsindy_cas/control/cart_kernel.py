@@ -206,24 +206,10 @@ class CartPoleKernel:
 def cart_pole_kernel(ode, cart_index, pole_index, upright, dt, levels, **options):
     """:class:`CartPoleKernel` of a cart-pendulum ODE at the upright.
 
-    Parameters
-    ----------
-    ode : casadi.Function
-        ``(x (4,), u (2,)) -> xdot``, state ``[q, q_dot]``.
-    cart_index, pole_index : int
-        Positions of the cart and the pole in ``q``.
-    upright : float
-        Upright pole angle (rad).
-    dt : float
-        Control period (s).
-    levels : array_like
-        Admissible cart forces (N).
-    **options
-        Passed to :class:`CartPoleKernel`.
-
-    Returns
-    -------
-    CartPoleKernel
+    The arguments are those of :func:`~lsindy_cas.control.viability.pole_kernel` (the ODE
+    ``(x (4,), u (2,)) -> xdot``, the cart's and the pole's positions in ``q``, the upright angle,
+    the control period and the admissible cart forces); ``options`` go to
+    :class:`CartPoleKernel`.
     """
     Ac, Bc = upright_jacobians(ode, pole_index, upright)
     order = [cart_index, pole_index, 2 + cart_index, 2 + pole_index]
