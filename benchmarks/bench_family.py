@@ -212,11 +212,17 @@ def figure(report, path):
     for ax, scen in zip(axes, ("nominal", "mismatch")):
         ks = [k for k in keys if k.endswith(scen)]
         for j, k in enumerate(ks):
-            rate = [100 * p["cells"][k]["successes"] / p["cells"][k]["episodes"] for p in plants]
+            # success of the reachable episodes, with its 95 % Wilson interval
+            won = [p["cells"][k]["reachable_successes"] for p in plants]
+            of = [p["cells"][k]["reachable_episodes"] for p in plants]
+            rate = [100 * w / max(n, 1) for w, n in zip(won, of)]
+            ci = np.array([wilson(w, n) for w, n in zip(won, of)]).T * 100
             ax.bar(np.arange(len(plants)) + j * width, rate, width,
+                   yerr=np.maximum(0.0, [np.subtract(rate, ci[0]), np.subtract(ci[1], rate)]),
+                   capsize=2,
                    label=k.rsplit("/", 1)[0])
         ax.axhline(95, color="k", lw=0.8, ls="--")
-        ax.set_ylabel(f"{scen} success (%)")
+        ax.set_ylabel(f"{scen}: reachable\nsucceeded (%, 95 % CI)")
         ax.set_ylim(0, 105)
     axes[1].set_xticks(np.arange(len(plants)) + 0.4 - width / 2)
     axes[1].set_xticklabels([f"{p['mc']}/{p['mp']}/{p['L']}\nkick {p['kick']:.2f}"
