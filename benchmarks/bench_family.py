@@ -175,8 +175,8 @@ def totals(report):
     for key in report["plants"][0]["cells"]:
         cells = [p["cells"][key] for p in report["plants"]]
         k, n = sum(c["successes"] for c in cells), sum(c["episodes"] for c in cells)
-        held = [e for c in cells for e in c["episodes_detail"][TUNED_STARTS:]]
-        held = held if report["seed"] == 0 else [e for c in cells for e in c["episodes_detail"]]
+        first = TUNED_STARTS if report["seed"] == 0 else 0  # other seeds: all held out
+        held = [e for c in cells for e in c["episodes_detail"][first:]]
         kh = sum(e["success"] for e in held if e["reachable"])
         nh = sum(e["reachable"] for e in held)
         kr = sum(c["reachable_successes"] for c in cells)
@@ -298,6 +298,11 @@ def main(argv=None):
         if not isinstance(weights, dict) or set(weights) - set(SwingUpMPC.default_weights):
             ap.error(f"--weights must be a JSON object with keys among "
                      f"{sorted(SwingUpMPC.default_weights)}")
+        bad = [k for k, v in weights.items() if not (
+            (v is None and k == "top_rate_band")
+            or (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 <= v < float("inf")))]
+        if bad:
+            ap.error(f"--weights: not a finite number >= 0: {', '.join(sorted(bad))}")
     starts_n = args.starts or (3 if args.quick else 20)
     if starts_n < 1 or args.workers < 1:
         ap.error("--starts and --workers must be >= 1")
