@@ -589,3 +589,48 @@ def test_warm_sqp_cap_is_7_with_the_pulse_balancer_and_10_with_the_sequence_one(
     assert SwingUpMPC(systems.cart_pendulum(),
                       balance={"method": "sequence"}).nlp.max_iters["warm"] == 10
     assert SwingUpMPC(light, max_iter=5).nlp.max_iters["warm"] == 5
+
+
+def test_energy_gap_is_the_hand_derived_pole_energy(model):
+    """With the cart at rest H = m_p L^2 thd^2 / 2 - m_p g L cos(theta) (theta from hanging), so
+    the gap (H - H_up) / (H_up - H_down) is -1 hanging, 0 upright, -1/2 horizontal, whatever the
+    cart's speed; the identified model's own energy gives the same."""
+    from lsindy_cas.control.cart_pendulum import _energy_gap
+    plant = systems.cart_pendulum(mc=2.0, mp=0.5, L=1.5)
+    for m in (plant, model):
+        ref = plant if m is plant else systems.cart_pendulum()
+        gap = _energy_gap(m, ["x", "theta"], 0, 1, np.pi)
+        assert float(gap([0.0, 0.0, 0.0, 0.0])) == pytest.approx(-1.0, abs=1e-6)
+        assert float(gap([0.3, np.pi, 5.0, 0.0])) == pytest.approx(0.0, abs=1e-6)
+        assert float(gap([0.0, np.pi / 2, -2.0, 0.0])) == pytest.approx(-0.5, abs=1e-6)
+        p = ref.params
+        thd = 1.3  # kinetic share: m_p L^2 thd^2 / 2 over 2 m_p g L
+        assert float(gap([0.0, 0.0, 0.0, thd])) == pytest.approx(
+            -1.0 + p["L"] * thd ** 2 / (4 * p["g"]), abs=1e-6)
+
+
+def test_energy_weight_bad_input():
+    plant = systems.cart_pendulum()
+    with pytest.raises(ValueError, match="energy"):
+        SwingUpMPC(plant, weights={"energy": -1.0})
+
+    class NoEnergy:
+        coords, actuated = ["x", "theta"], "x"
+
+        def ode(self):
+            return plant.ode()
+
+    with pytest.raises(TypeError, match="energy"):
+        SwingUpMPC(NoEnergy(), weights={"energy": 1.0})
+
+
+@pytest.mark.slow
+def test_energy_weight_lifts_a_heavy_pendulum_from_rest():
+    """2.0/0.5/1.5 from near rest at the bottom (start 20 of seed 0): without the energy term the
+    NLP stays at the bottom, where its angle cost is flat (docs/history/control.md, stop 27)."""
+    plant = systems.cart_pendulum(mc=2.0, mp=0.5, L=1.5)
+    x0 = random_starts(60, seed=0)[20]
+    stuck = run_episode(SwingUpMPC(plant, dt=0.05), Plant(plant, 0.05), x0)
+    assert not stuck.success and stuck.track_used < 0.6
+    ep = run_episode(SwingUpMPC(plant, dt=0.05, weights={"energy": 100.0}), Plant(plant, 0.05), x0)
+    assert ep.success

@@ -99,6 +99,30 @@ def _upright_kick(ode, cart_index, pole_index, upright, dt, n_substeps, force_se
         return 0.0
 
 
+def _energy_gap(model, coords, cart_index, pole_index, upright):
+    """``casadi.Function`` x (4,) -> ``(H - H_up) / (H_up - H_down)`` from the model's own energy
+    (``hamiltonian_`` of a fitted model, ``hamiltonian`` of a system) with the cart at rest: -1
+    hanging still, 0 upright and still."""
+    from ..symbolic.coords import Coordinates
+    H = getattr(model, "hamiltonian_", None)
+    H = getattr(model, "hamiltonian", None) if H is None else H
+    if H is None:
+        raise TypeError("weights['energy'] needs a model with an energy (hamiltonian_).")
+    c = Coordinates(coords)
+    energy = ca.Function("H", [ca.vertcat(c.q, c.qd)], [c.to_casadi(H)])
+    x = ca.SX.sym("x", 4)
+    still = ca.vertcat(*[0 if i == 2 + cart_index else x[i] for i in range(4)])
+    up = np.zeros(4)
+    up[pole_index] = upright
+    down = up.copy()
+    down[pole_index] += np.pi
+    h_up, h_down = float(energy(up)), float(energy(down))
+    if not abs(h_up - h_down) > 1e-12:
+        raise ValueError("the model's energy is the same hanging and upright; weights['energy'] "
+                         "cannot use it.")
+    return ca.Function("energy_gap", [x], [(energy(still) - h_up) / (h_up - h_down)])
+
+
 def _balancer_kind(balance):
     """The balancer class and its options chosen by ``balance`` (True, False or a dict)."""
     if not isinstance(balance, (bool, dict)):
@@ -155,14 +179,16 @@ class SwingUpMPC(DiscreteInputMPC):
         Name of the cart coordinate, overriding the model's ``actuated_``.
     weights : dict, optional
         Cost weights ``{"angle", "position", "velocity", "rate", "terminal", "input",
-        "rate_band", "rate_band_weight", "top_rate", "top_rate_band"}`` (see
+        "rate_band", "rate_band_weight", "top_rate", "top_rate_band", "energy"}`` (see
         :attr:`default_weights`); ``rate_band`` and ``rate_band_weight`` shape the lookahead's
         penalty on pole rates above ``rate_band`` near the top; ``top_rate`` weighs, in the
         NLP's stage and terminal costs, the pole rate beyond ``top_rate_band`` (rad/s; by
         default :attr:`TOP_RATE_KICKS` of the model's kicks) scaled by ``cos^4`` of half the
         angle from the upright, so that plans arrive at the top slowly enough for the pulse
         balancer to catch them on a plant 10 % off the model; unless given, ``top_rate`` is 0
-        (off) where the sequence balancer is chosen (measured to cost success there).
+        (off) where the sequence balancer is chosen (measured to cost success there);
+        ``energy`` (default 0, off) weighs, at the plan's end, the model's own energy with the
+        cart at rest against its value upright, scaled to -1 hanging (needs ``hamiltonian_``).
     balance : bool or dict
         Near the upright, choose the force with :class:`~lsindy_cas.control.balancer.PulseBalancer`
         (an enumerated MPC over the push sequences themselves, on the model linearised at the
@@ -217,7 +243,7 @@ class SwingUpMPC(DiscreteInputMPC):
     default_weights = {"angle": 10.0, "position": 1.0, "velocity": 0.1, "rate": 0.1,
                        "terminal": 10.0, "input": 1e-2,
                        "rate_band": 0.35, "rate_band_weight": 1e3,
-                       "top_rate": 1.0, "top_rate_band": None}
+                       "top_rate": 1.0, "top_rate_band": None, "energy": 0.0}
 
     #: default ``top_rate_band``: this many of the model's kicks (1.5 rad/s on the paper plant)
     TOP_RATE_KICKS = 3.0
@@ -302,9 +328,15 @@ class SwingUpMPC(DiscreteInputMPC):
         band = w["rate_band_weight"] * ca.fmax(
             ca.fabs(x[2 + ip]) * ca.cos(half) ** 2 - w["rate_band"], 0) ** 2
         options.setdefault("lookahead_penalty", ca.Function("band", [x], [band]))
+        r_end = ca.sqrt(w["terminal"]) * r
+        if check_real("weights['energy']", w["energy"], nonnegative=True) > 0:
+            # the plan's end: the pole's energy against its value upright (a slope where the
+            # angle cost is flat, hanging; 2.0/0.5/1.5 from rest: docs/history/control.md)
+            gap = _energy_gap(model, coords, ic, ip, self.upright)
+            r_end = ca.vertcat(r_end, ca.sqrt(w["energy"]) * gap(x))
         super().__init__(ode, force_set, input_index=ic,
                          stage_residual=ca.Function("r", [x], [r]),
-                         terminal_residual=ca.Function("rN", [x], [ca.sqrt(w["terminal"]) * r]),
+                         terminal_residual=ca.Function("rN", [x], [r_end]),
                          dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
                          input_weight=w["input"], **options)
         self.cart_index, self.pole_index = ic, ip
