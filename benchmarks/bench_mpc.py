@@ -149,6 +149,33 @@ def _metrics(ctrl, options, eps, scenario, build):
         failed_starts=[e.x0.round(4).tolist() for e in eps if not e.success])
 
 
+def reference_ms(model, repeats=5):
+    """Median times (ms) of two fixed workloads, to compare runs made on machines (or days) of
+    different speed: a pure-Python loop of 10^6 additions, and 10^3 evaluations of the model's
+    ODE in CasADi's virtual machine (what the solver's functions run on)."""
+    ode = model.ode()
+    x, u = np.array([0.1, 3.0, 0.2, -0.3]), np.zeros(2)
+
+    def loop():
+        s = 0
+        for i in range(10 ** 6):
+            s += i
+
+    def casadi_calls():
+        for _ in range(10 ** 3):
+            ode(x, u)
+
+    out = {}
+    for name, f in (("python_loop_1e6", loop), ("casadi_ode_1e3", casadi_calls)):
+        t = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            f()
+            t.append(1e3 * (time.perf_counter() - t0))
+        out[name] = float(np.median(t))
+    return out
+
+
 def table(rows):
     head = ("| configuration | scenario | success | median t_up (s) | max abs x (m) | fallbacks "
             "| solve median (ms) | solve p99 (ms) | CPU p99 (ms) | step median (ms) "
@@ -186,6 +213,9 @@ def main(argv=None):
     model, _ = identify_cart_pendulum()
     starts = random_starts(args.episodes, args.seed)
     load_before = os.getloadavg()
+    reference = reference_ms(model)
+    print("machine speed (median ms of fixed workloads; compare runs by these): "
+          + ", ".join(f"{k} {v:.0f}" for k, v in reference.items()), flush=True)
     rows = list(zip(names, run_configs(model, [CONFIGS[n][0] for n in names], starts,
                                        seed=args.seed)))
     if DEFAULT in names and not args.no_robustness:
@@ -199,7 +229,8 @@ def main(argv=None):
     for name, r in rows:
         print(f"  {name} ({r['scenario']}): {r['slow_steps']['wall']} | {r['slow_steps']['cpu']}")
     report = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
-                          "loadavg_before": load_before, "loadavg_after": os.getloadavg()},
+                          "loadavg_before": load_before, "loadavg_after": os.getloadavg(),
+                          "reference_ms": reference},
               "episodes": args.episodes, "seed": args.seed,
               "criteria": "issue 3: |wrap(theta - pi)| < 0.1 rad and |theta_dot| < 0.5 rad/s "
                           "over the last 3 s of 10 s, |x| <= 2 m throughout",

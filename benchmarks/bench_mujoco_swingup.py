@@ -55,6 +55,7 @@ class _Exact:
     def __init__(self, system):
         self.system, self.coords_ = system, list(system.coords)
         self.actuated_ = [system.actuated]
+        self.hamiltonian_ = system.hamiltonian  # the same controller as the identified model's
 
     def ode(self):
         return self.system.ode()

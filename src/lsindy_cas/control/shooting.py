@@ -235,7 +235,10 @@ class MultipleShootingNLP:
 
     def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol, jit=None):
         n, N = self.n_state, self.horizon
-        common = {"expand": True, "print_time": False, "error_on_fail": False}
+        # a diverged iterate (NaN in the cost) is a failed solve the controller recovers from
+        # (recorded in stats.statuses); CasADi's own warning only made the output noisy
+        common = {"expand": True, "print_time": False, "error_on_fail": False,
+                  "show_eval_warnings": False}
         nlpsol = compiled_nlpsol if (self.jit if jit is None else jit) else ca.nlpsol
         if solver == "ipopt":
             opts = dict(common, ipopt={
