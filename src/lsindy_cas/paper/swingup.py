@@ -260,6 +260,7 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
     report = {"controller": {"solver": ctrl.solver, "relaxation": ctrl.relaxation,
                              "rounding": ctrl.rounding, "dt": ctrl.dt, "horizon": ctrl.horizon,
                              "force_set": ctrl.levels.tolist(), "upright": ctrl.upright,
+                             "weights": getattr(ctrl, "weights", None),
                              "build_seconds": round(build_s, 3)},
               "criteria": {"angle_tol": ANGLE_TOL, "rate_tol": RATE_TOL, "window": WINDOW,
                            "t_end": T_END, "track_limit": ctrl.track_limit},
