@@ -9,6 +9,7 @@ import math
 
 import casadi as ca
 import numpy as np
+import sympy
 import pytest
 
 from lsindy_cas import systems
@@ -649,6 +650,14 @@ def test_energy_weight_bad_input():
         SwingUpMPC(NoEnergy(), weights={"energy": 1.0})
     # by default the term is simply off for a model without an energy (an ODE-only model)
     assert SwingUpMPC(NoEnergy()).weights["energy"] == 0.0
+
+    class FlatEnergy(NoEnergy):  # an energy the term cannot use: no potential in the angle
+        hamiltonian_ = (sympy.Symbol("x_dot", real=True) ** 2
+                        + sympy.Symbol("theta_dot", real=True) ** 2) / 2
+
+    assert SwingUpMPC(FlatEnergy(), upright=np.pi).weights["energy"] == 0.0
+    with pytest.raises(ValueError, match="same hanging and upright"):
+        SwingUpMPC(FlatEnergy(), upright=np.pi, weights={"energy": 100.0})
 
 
 @pytest.mark.slow
