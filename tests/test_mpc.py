@@ -670,3 +670,29 @@ def test_energy_weight_lifts_a_heavy_pendulum_from_rest():
     assert not stuck.success and stuck.track_used < 0.6
     ep = run_episode(SwingUpMPC(plant, dt=0.05), Plant(plant, 0.05), x0)  # default: 100
     assert ep.success
+
+
+def test_recoveries_back_off_after_failing_in_a_row():
+    """Every solve fails: the step after a failure recovers, but after RECOVERY_BACKOFF failed
+    recoveries in a row only every RECOVERY_BACKOFF-th step does (warm SQP in between) — on
+    2.0/0.3/0.3 +-10 % such recoveries kept failing at 200-500 ms each."""
+    ctrl = SwingUpMPC(systems.cart_pendulum(), dt=0.05)
+    assert ctrl.RECOVERY_BACKOFF == 3
+    kinds = []
+
+    def failing(x, z0, lam_g0, lam_x0, kind):
+        kinds.append(kind)
+        return "failed", z0, lam_g0, lam_x0, 5, "Maximum_Iterations_Exceeded"
+
+    ctrl._solve = failing
+    ctrl.nlp.last_violation = 0.0  # what a real failed solve leaves behind
+    for _ in range(10):
+        assert ctrl([0.0, 0.0, 0.0, 0.0]) in FORCES
+    assert kinds == ["cold", "recover", "recover", "recover", "warm", "warm", "recover",
+                     "warm", "warm", "recover"]
+    ctrl.reset()
+    ctrl.RECOVERY_BACKOFF = 0  # every failure recovers, as before
+    kinds.clear()
+    for _ in range(6):
+        ctrl([0.0, 0.0, 0.0, 0.0])
+    assert kinds == ["cold"] + ["recover"] * 5

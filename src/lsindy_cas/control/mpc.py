@@ -8,12 +8,9 @@ the first interval's relaxed decision into one admissible level: by enumerating 
 sequences against the relaxed plan's cost-to-go (:mod:`lsindy_cas.control.lookahead`, the
 default), by sum-up rounding with the rounding error carried across steps, or by plain rounding
 (:mod:`lsindy_cas.control.rounding`); where a subclass's own rule decides (the balancer of
-:class:`~lsindy_cas.mpc.SwingUpMPC`), the step only shifts the plan.  A failed or
-non-converged solve falls back to the shifted previous plan and is counted in
-:attr:`DiscreteInputMPC.stats`; the next step re-solves with an interior-point method, fatrop
-(structure-exploiting) or IPOPT (or, with ``recovery="continue"``, continues the SQP from the
-failed iterate, so that a step needs at most ``max_iter`` SQP iterations, with IPOPT only after
-``recover_after`` failures in a row).
+:class:`~lsindy_cas.mpc.SwingUpMPC`), the step only shifts the plan.  A failed solve falls back
+to the shifted previous plan (counted in :attr:`DiscreteInputMPC.stats`); the next step
+re-solves with fatrop or IPOPT, or continues the SQP (``recovery="continue"``).
 """
 
 from __future__ import annotations
@@ -99,7 +96,8 @@ class DiscreteInputMPC:
     recover_after : int, optional
         After this many failed solves in a row the next solve is a recovery solve (fatrop or
         IPOPT) from the shifted plan; by default 1 with ``recovery="fatrop"`` or
-        ``"ipopt"``, 3 with ``"continue"``.
+        ``"ipopt"``, 3 with ``"continue"``.  After :attr:`RECOVERY_BACKOFF` failed recoveries
+        in a row only every ``RECOVERY_BACKOFF``-th step recovers, warm SQP in between.
     recovery : {"fatrop", "ipopt", "continue"}, optional
         What the solves after a failure start from: ``"continue"`` warm-starts the
         next SQP solve from the failed iterate itself, shifted, so that the SQP carries on
@@ -160,6 +158,9 @@ class DiscreteInputMPC:
     stats : MPCStats
         Solve counts and times, accumulated over episodes.
     """
+
+    #: failed recoveries in a row after which only every so many steps recover (0: every one)
+    RECOVERY_BACKOFF = 3
 
     def __init__(self, ode, levels, *, input_index, stage_residual, terminal_residual, dt,
                  horizon, state_lb=None, state_ub=None, input_weight=1e-3, n_substeps=1,
@@ -338,8 +339,9 @@ class DiscreteInputMPC:
             return self._balanced_step(x, index, t_start, c_start)
         # robust solvers for a cold guess, and after failures (so that a run of failures
         # cannot keep replaying an exhausted plan)
-        kind = ("cold" if self._warm is None else
-                "recover" if self._failed >= self.recover_after else "warm")
+        f, b = self._failed - self.recover_after, self.RECOVERY_BACKOFF
+        kind = ("cold" if self._warm is None else "recover"
+                if f >= 0 and (not b or f < b or (f - b) % b == b - 1) else "warm")
         if self._idle:
             self._catch_up()
         z0, lam_g0, lam_x0 = self._cold_start(x) if self._warm is None else self._warm
