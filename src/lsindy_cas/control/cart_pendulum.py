@@ -335,13 +335,11 @@ class SwingUpMPC(DiscreteInputMPC):
             ca.fabs(x[2 + ip]) * ca.cos(half) ** 2 - w["rate_band"], 0) ** 2
         options.setdefault("lookahead_penalty", ca.Function("band", [x], [band]))
         r_end = ca.sqrt(w["terminal"]) * r
-        has_energy = any(getattr(model, a, None) is not None
-                         for a in ("hamiltonian_", "hamiltonian"))
-        if "energy" not in (weights or {}) and (sequence or not has_energy):
-            # the default needs an energy (an explicit weight insists), and is for the slow
-            # pendulums of the pulse balancer, whose 2 s plans cannot see the top from rest; on
-            # the sequence balancer's plants it only reshuffled hand-overs (60-start family:
-            # nominal 485 -> 485, mismatch 367 -> 364; MuJoCo light cart 20/20 -> 18/20)
+        if "energy" not in (weights or {}) and sequence:
+            # the default is for the slow pendulums of the pulse balancer, whose 2 s plans
+            # cannot see the top from rest; on the sequence balancer's plants it only reshuffled
+            # hand-overs (60-start family: nominal 485 -> 485, mismatch 367 -> 364; MuJoCo
+            # light cart 20/20 -> 18/20)
             w["energy"] = 0.0
         if check_real("weights['energy']", w["energy"], nonnegative=True) > 0:
             # the plan's end: the pole's energy against its value upright (a slope where the
@@ -349,7 +347,7 @@ class SwingUpMPC(DiscreteInputMPC):
             try:
                 gap = _energy_gap(model, coords, ic, ip, self.upright)
                 r_end = ca.vertcat(r_end, ca.sqrt(w["energy"]) * gap(x))
-            except (TypeError, ValueError):  # an energy the term cannot use: off by default
+            except (TypeError, ValueError):  # no energy, or one it cannot use: off by default
                 if "energy" in (weights or {}):
                     raise
                 w["energy"] = 0.0
