@@ -190,8 +190,9 @@ class SwingUpMPC(DiscreteInputMPC):
         ``energy`` (default 100) weighs, at the plan's end, the model's own energy with the
         cart at rest against its value upright, scaled to -1 hanging (a slope where the angle
         cost is flat, at the bottom); it needs the model's ``hamiltonian_`` (or a system's
-        ``hamiltonian``); unless given, it is 0 (off) for a model without one and where the
-        sequence balancer is chosen (given explicitly with such a model: ``TypeError``).
+        ``hamiltonian``); unless given, it is 0 (off) where the sequence balancer is chosen and
+        for a model without an energy or with one the same hanging and upright (given
+        explicitly with such a model: ``TypeError`` or ``ValueError``).
     balance : bool or dict
         Near the upright, choose the force with :class:`~lsindy_cas.control.balancer.PulseBalancer`
         (an enumerated MPC over the push sequences themselves, on the model linearised at the
