@@ -67,3 +67,27 @@ def test_bad_arguments(kwargs, exc, word):
         InputGainCorrection(_model_step(), 0, **kwargs)
     with pytest.raises(ValueError, match="input_index"):
         InputGainCorrection(_model_step(), 2)
+
+
+def test_update_is_the_per_component_rls_step():
+    """The batched update equals the textbook two-parameter RLS step, component by component
+    (gain and bias regressed on the input's one-step effect, forgetting, covariance bound)."""
+    step = _model_step()
+    corr = InputGainCorrection(step, 0, forgetting=0.9)
+    theta, cov = corr.theta.copy(), corr.cov.copy()
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        x, force = rng.normal(size=2), float(rng.choice([-10.0, 10.0]))
+        x_next = _plant(step, x, force, np.array([0.2, -0.1]), np.array([0.01, 0.0]))
+        x_next += rng.normal(0.0, 1e-3, size=2)
+        x_u = np.asarray(step(x, [force, 0.0])).ravel()
+        x_0 = np.asarray(step(x, [0.0, 0.0])).ravel()
+        for i in range(2):
+            phi = np.array([x_u[i] - x_0[i], 1.0])
+            k = cov[i] @ phi / (0.9 + phi @ cov[i] @ phi)
+            theta[i] += k * (x_next[i] - x_u[i] - phi @ theta[i])
+            cov[i] = np.clip((cov[i] - np.outer(k, cov[i] @ phi)) / 0.9, -1e3, 1e3)
+        theta[:, 0] = np.clip(theta[:, 0], -0.5, 0.5)
+        corr.update(x, force, x_next)
+        np.testing.assert_allclose(corr.theta, theta, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(corr.cov, cov, rtol=1e-12, atol=1e-15)

@@ -198,6 +198,11 @@ class PulseBalancer:
         for r, row in enumerate(seq):
             when = np.flatnonzero(row)
             self._pushes[r, :when.size] = 1 + (row[when] - 1) * self.horizon + when
+        # the sums of all but the last push are shared by many sequences: computed once per
+        # call for the distinct prefixes, each sequence then adds its last push to its prefix
+        head = self._pushes[:, :-1] if self.max_pushes > 1 else np.zeros((len(seq), 1), int)
+        self._prefix, self._prefix_id = np.unique(head, axis=0, return_inverse=True)
+        self._prefix_id = self._prefix_id.ravel()
         j, k = np.meshgrid(np.arange(self.horizon), np.arange(self.horizon), indexing="ij")
         self._causal = k >= j                        # input j acts on predicted state k
         self._lag = np.where(self._causal, k - j, 0)
@@ -261,18 +266,26 @@ class PulseBalancer:
         unit = resp[:, :, self._comps].transpose(0, 2, 1).reshape(H, 3 * H)
         table = np.zeros((1 + self._push_values.size * H, 3 * H))
         table[1:] = (self._push_values[:, None, None] * unit).reshape(-1, 3 * H)
-        pred = free[:, self._comps].T.reshape(-1) + table[self._pushes[:, 0]]
-        for m in range(1, self.max_pushes):
-            pred += table[self._pushes[:, m]]
-        over = np.abs(pred)
+        base = free[:, self._comps].T.reshape(-1)
+        prefix = table[self._prefix[:, 0]] + base
+        for m in range(1, self._prefix.shape[1]):
+            prefix += table[self._prefix[:, m]]
+        pred = np.take(prefix, self._prefix_id, axis=0)
+        pred += np.take(table, self._pushes[:, -1], axis=0)
+        over = np.abs(pred, out=pred)
         over -= self._bands
         np.maximum(over, 0.0, out=over)
-        viol = np.einsum("ij,ij,j->i", over, over, self._band_weights)
-        lean = pred[:, :H] - self.reference_lean(e)
+        viol = np.square(over, out=over) @ self._band_weights
+        # lexicographic: the cost only of the sequences with the least violation
+        keep = np.flatnonzero(viol <= viol.min() + 1e-12)
+        pushes = self._pushes[keep]
+        lean = base[:H] + table[pushes[:, 0], :H]
+        for m in range(1, self.max_pushes):
+            lean += table[pushes[:, m], :H]
+        lean -= self.reference_lean(e)
         unit_mode = resp[:, -1, :] @ self.mode                                # (H,)
         mode_table = np.concatenate([[0.0], (self._push_values[:, None] * unit_mode).ravel()])
-        mode = free[-1] @ self.mode + mode_table[self._pushes].sum(axis=1)    # unstable mode at H
+        mode = free[-1] @ self.mode + mode_table[pushes].sum(axis=1)         # unstable mode at H
         cost = (self.lean_weight * self.dt * np.einsum("ij,ij->i", lean, lean)
-                + self.push_weight * self.n_pushes + self.mode_weight * mode**2)
-        cost[viol > viol.min() + 1e-12] = np.inf
-        return int(self.first[int(np.argmin(cost))])
+                + self.push_weight * self.n_pushes[keep] + self.mode_weight * mode**2)
+        return int(self.first[keep[int(np.argmin(cost))]])

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validate import check_int, check_real
+from .fastcall import NumericFunction
 
 __all__ = ["InputGainCorrection"]
 
@@ -50,6 +51,7 @@ class InputGainCorrection:
 
     def __init__(self, step, input_index, *, forgetting=0.95, max_gain=0.5):
         self.step = step
+        self._step = NumericFunction(step)
         self.n_state, self.n_input = step.size1_in(0), step.size1_in(1)
         self.input_index = check_int("input_index", input_index, low=0, high=self.n_input - 1)
         self.forgetting = check_real("forgetting", forgetting)
@@ -77,8 +79,8 @@ class InputGainCorrection:
         """The model's next state ``F(x, u)`` with ``force`` applied and ``F(x, 0)``."""
         u = np.zeros(self.n_input)
         u[self.input_index] = force
-        x_u = np.asarray(self.step(x, u)).ravel()
-        x_0 = np.asarray(self.step(x, np.zeros(self.n_input))).ravel()
+        x_u = self._step(x, u).ravel()
+        x_0 = self._step(x, np.zeros(self.n_input)).ravel()
         return x_u, x_0
 
     def predict(self, x, force):
@@ -105,12 +107,12 @@ class InputGainCorrection:
         x_u, x_0 = self._responses(x_prev, force)
         err = x - x_u
         lam = self.forgetting
-        for i in range(self.n_state):
-            phi = np.array([x_u[i] - x_0[i], 1.0])
-            P = self.cov[i]
-            Pphi = P @ phi
-            k = Pphi / (lam + phi @ Pphi)
-            self.theta[i] += k * (err[i] - phi @ self.theta[i])
-            self.cov[i] = (P - np.outer(k, Pphi)) / lam
-            np.clip(self.cov[i], -self.COV_BOUND, self.COV_BOUND, out=self.cov[i])
+        # the n_state two-parameter RLS problems at once (batched matrix products)
+        phi = np.stack([x_u - x_0, np.ones(self.n_state)], axis=1)        # (n_state, 2)
+        Pphi = np.matmul(self.cov, phi[:, :, None])[:, :, 0]
+        k = Pphi / (lam + np.matmul(phi[:, None, :], Pphi[:, :, None])[:, 0, 0])[:, None]
+        innovation = err - np.matmul(phi[:, None, :], self.theta[:, :, None])[:, 0, 0]
+        self.theta += k * innovation[:, None]
+        self.cov = (self.cov - k[:, :, None] * Pphi[:, None, :]) / lam
+        np.clip(self.cov, -self.COV_BOUND, self.COV_BOUND, out=self.cov)
         np.clip(self.theta[:, 0], -self.max_gain, self.max_gain, out=self.theta[:, 0])

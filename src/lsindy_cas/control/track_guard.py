@@ -25,6 +25,7 @@ import casadi as ca
 import numpy as np
 
 from .._validate import check_real
+from .fastcall import NumericFunction
 
 __all__ = ["TrackGuard"]
 
@@ -109,13 +110,14 @@ class TrackGuard:
             best = ca.if_else(better, nxt, best)
             err = ca.if_else(better, miss(nxt), err)
             index = ca.if_else(better, i, index)
-        self._stop = ca.Function("stop", [x], [best, index])
+        self._stop = NumericFunction(ca.Function("stop", [x], [best, index]))
         x0, f = ca.SX.sym("x0", n_state), ca.SX.sym("f")
         rows = [held(x0, f)]
         for _ in range(self.n_steps):
-            rows.append(self._stop(rows[-1])[0])
+            rows.append(self._stop.f(rows[-1])[0])
         traj = ca.horzcat(*rows)
-        self._predict = ca.Function("guard", [x0, f], [traj[self.ic, :], traj[2 + self.ic, :]])
+        self._predict = NumericFunction(
+            ca.Function("guard", [x0, f], [traj[self.ic, :], traj[2 + self.ic, :]]))
         self.n_fired = 0
 
     def brake_level(self, x):
