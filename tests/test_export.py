@@ -72,7 +72,7 @@ def test_export_bad_input(cart_model, tmp_path, capsys):
     assert "C identifier" in capsys.readouterr().err
 
 
-def test_friction_and_relative_models_export(tmp_path):
+def test_friction_and_relative_models_export(tmp_path, capsys):
     """A model with viscous and Coulomb friction, energy relative (passive data): the C code carries
     the friction forces (Coulomb as the ODE's tanh) and matches the Python ODE."""
     path = tmp_path / "fric.json"
@@ -86,6 +86,10 @@ def test_friction_and_relative_models_export(tmp_path):
     out = tmp_path / "c"
     out.mkdir()
     assert main(["export", str(path), "--c", str(out), "--name", "fric"]) == 0
+    # the relative scale is stated: the response to u is up to a factor
+    assert "energy is relative" in capsys.readouterr().err
+    readme = (out / "README.md").read_text()
+    assert "Energy relative" in readme and "`theta_dot**2`" in readme
     clib = _load(out, "fric")
     ode = model.ode()
     rng = np.random.default_rng(3)
@@ -121,3 +125,9 @@ def test_export_refuses_unwritable_or_file_target(cart_model, tmp_path, capsys):
     assert main(["export", str(cart_model), "--c", str(locked)]) == 2
     err = capsys.readouterr().err
     assert "not writable" in err and err.count("\n") == 1
+
+
+def test_absolute_model_readme_has_no_relative_note(cart_model, tmp_path, capsys):
+    assert main(["export", str(cart_model), "--c", str(tmp_path)]) == 0
+    assert "relative" not in (tmp_path / "README.md").read_text()
+    assert "relative" not in capsys.readouterr().err

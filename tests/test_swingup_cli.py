@@ -55,3 +55,30 @@ def test_jit_option_reaches_the_controller(monkeypatch):
                         lambda model, **kw: seen.update(kw) or {"scenarios": {}})
     assert cli.main(["swingup", "--jit", "--scenarios", "nominal"]) == 0
     assert seen["controller_options"] == {"jit": True}
+
+
+RELATIVE = {"coords": ["x", "theta"], "actuated": ["x"], "energy_scale": "relative",
+            "normalised_by": "theta_dot**2",
+            "hamiltonian_terms": {"x_dot**2": 11.0, "theta_dot**2": 1.0,
+                                  "theta_dot*x_dot*cos(theta)": 2.0, "cos(theta)": -19.62}}
+
+
+def test_relative_energy_model_is_refused(tmp_path, monkeypatch, capsys):
+    """A model from passive data without a scale record knows the force's effect only up to a
+    factor: no swing-up is attempted from it (CLI: one line, exit 2; Python: ValueError)."""
+    import json
+
+    from lsindy_cas.identify.estimator import LagrangianSINDy
+    from lsindy_cas.mpc import SwingUpMPC
+
+    path = tmp_path / "rel.json"
+    path.write_text(json.dumps(RELATIVE))
+    monkeypatch.setattr(swingup, "run_swingup", lambda *a, **k: pytest.fail("ran"))
+    assert cli.main(["swingup", "--model", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "relative" in err and "--scale" in err
+    with pytest.raises(ValueError, match="relative"):
+        SwingUpMPC(LagrangianSINDy.load(path))
+    absolute = dict(RELATIVE, energy_scale="absolute")
+    path.write_text(json.dumps(absolute))
+    assert SwingUpMPC(LagrangianSINDy.load(path), horizon=10).horizon == 10

@@ -47,6 +47,14 @@ arg[0] = x; arg[1] = u; res[0] = xdot;
 ```
 
 Build: `gcc -O2 -c {name}.c` (plain C99, only `math.h`).
+{relative}"""
+
+_RELATIVE = """
+**Energy relative.** The model was identified from passive data without a scale record: its
+energy, and so the inertia the input acts on, is known only up to a constant factor
+(coefficient of `{term}` fixed to 1). The unforced motion (u = 0) is exact; the response to u is
+scaled by that unknown factor. Identify with a scale record (`lsindy identify --scale TRAJ`,
+a short actuated run) before using u.
 """
 
 
@@ -108,6 +116,8 @@ def export_c(model, folder, *, dt: float = 0.05, n_substeps: int = 1, name: str 
     text = _README.format(
         name=name, version=__version__, casadi=ca.__version__, source=source,
         coords=", ".join(coords), state=", ".join(coords + [c + "_dot" for c in coords]),
-        inputs=", ".join("Q_" + c for c in coords), nx=nx, nu=nu, dt=dt, n_sub=n_substeps)
+        inputs=", ".join("Q_" + c for c in coords), nx=nx, nu=nu, dt=dt, n_sub=n_substeps,
+        relative=(_RELATIVE.format(term=getattr(model, "normalised_by_", None))
+                  if getattr(model, "energy_scale_", "absolute") == "relative" else ""))
     written.append(atomic_write(folder / "README.md", lambda t: Path(t).write_text(text)))
     return written

@@ -22,6 +22,10 @@ def run(args) -> int:
     paths = export_c(model, folder, dt=args.dt, n_substeps=args.substeps, name=args.name,
                      source=str(args.model))
     print("written: " + ", ".join(str(p) for p in paths))
+    if getattr(model, "energy_scale_", "absolute") == "relative":
+        import sys
+        print("note: the energy is relative (passive data without --scale): the response to u "
+              "is scaled by an unknown factor (README.md)", file=sys.stderr)
     return 0
 
 

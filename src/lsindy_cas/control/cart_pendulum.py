@@ -263,6 +263,11 @@ class SwingUpMPC(DiscreteInputMPC):
         coords = getattr(model, "coords_", None) or getattr(model, "coords", None)
         if coords is None or not hasattr(model, "ode"):
             raise TypeError("model must be a fitted cart-pendulum model with coords_ and ode().")
+        if getattr(model, "energy_scale_", "absolute") == "relative":
+            raise ValueError("the model's energy is relative (passive data without a scale "
+                             "record): the force's effect is known only up to a constant factor, "
+                             "so it cannot be controlled; identify it with a scale record "
+                             "(lsindy identify --scale TRAJ, a short actuated run).")
         coords = list(coords)
         if len(coords) != 2:
             raise ValueError(f"model must have exactly two coordinates (cart, pole), got "

@@ -112,6 +112,10 @@ def run_from_args(args):
         from ..identify.estimator import LagrangianSINDy
 
         model = LagrangianSINDy.load(args.model)
+        if getattr(model, "energy_scale_", "absolute") == "relative":
+            raise ValueError(f"--model {args.model}: the energy is relative (passive data "
+                             "without --scale): the force's effect is unknown up to a factor; "
+                             "identify with --scale TRAJ")
     report = swingup.run_swingup(model, episodes=args.episodes, seed=args.seed,
                                  scenarios=scenarios, out=args.out, json_path=args.json,
                                  controller_options=opts)
