@@ -110,3 +110,15 @@ def test_guard_never_fires_in_a_nominal_paper_plant_episode():
         ep = run_episode(ctrl, Plant(systems.cart_pendulum(), DT), x0)
         assert ep.success
     assert ctrl.stats.n_guard == 0
+
+
+def test_brake_level_pushes_against_a_fast_cart_and_holds_a_slow_one():
+    """The stopping policy: full force against a cart running outward fast; near rest the level
+    whose next speed is nearest a slow retreat towards the centre, a quarter of one push's speed
+    change: from rest, waiting (0) is nearer it than a full push (the retreat's 4 times)."""
+    guard = _guard(systems.cart_pendulum())
+    fast_out = np.array([1.0, 0.0, 1.5, 0.0])
+    assert FORCES[guard.brake_level(fast_out)] == -10.0
+    assert FORCES[guard.brake_level(-fast_out)] == 10.0
+    level = guard.brake_level(np.array([1.0, 0.0, 0.0, 0.0]))
+    assert isinstance(level, int) and FORCES[level] == 0.0

@@ -123,7 +123,7 @@ class TrackGuard:
     def brake_level(self, x):
         """Index of the stopping policy's level at state ``x``: the level after which the
         model's cart speed is nearest :attr:`retreat` towards the centre."""
-        return int(self._stop(np.asarray(x, dtype=float))[1])
+        return int(self._stop(np.asarray(x, dtype=float))[1].item())
 
     def reach(self, x, force):
         """Largest ``|x|`` (m) the model predicts for ``force`` over one period followed by the
