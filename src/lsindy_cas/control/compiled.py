@@ -18,11 +18,14 @@ an unwritable folder only means nothing is saved.  Files are large (about 40 MB 
 swing-up's three: the SQP's Hessian and Jacobian, fatrop with its NLP) and may be deleted at
 any time.  Nothing is left in the temporary folder: CasADi's C sources and libraries are
 removed once loaded (before issue 16 a ``/tmp/lsindy_jit_*`` folder, often with a 2 MB
-library, stayed behind per compile and per load).
+library, stayed behind per compile and per load).  Loading also writes an empty ``jit_tmp*.c``
+that CasADi removes when the Function is freed; it goes to the cache folder's ``jit-load``
+(cache off: a per-process ``lsindy_jit_load_*`` folder, removed at exit if empty).
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import hashlib
 import json
@@ -110,16 +113,45 @@ def _path(kind, parts):
     return folder / f"jit-{kind}-{hashlib.sha256(text.encode()).hexdigest()[:32]}.casadi"
 
 
+_LOAD_TMP = None  # the load folder when the cache is off (one per process)
+
+
+def _load_dir():
+    """Folder that compiled Functions are loaded in: ``jit-load`` in the cache folder, or (cache
+    off or unwritable) one folder per process under the temporary one.
+
+    Loading a compiled solver writes an empty ``jit_tmp*.c`` into the current directory, and
+    CasADi removes it when the Function is freed -- with a warning on stderr if it is already
+    gone (``lsindy swingup --jit`` printed two at exit while the load folder was deleted right
+    after loading).  So the file stays where CasADi expects it until then.
+    """
+    global _LOAD_TMP
+    folder = cache_dir()
+    if folder is not None:
+        with contextlib.suppress(OSError):
+            (Path(folder) / "jit-load").mkdir(parents=True, exist_ok=True)
+            return Path(folder) / "jit-load"
+    if _LOAD_TMP is None or not _LOAD_TMP.is_dir():
+        _LOAD_TMP = Path(tempfile.mkdtemp(prefix="lsindy_jit_load_"))
+        atexit.register(_remove_if_empty, _LOAD_TMP)  # empty if every Function was freed
+    return _LOAD_TMP
+
+
+def _remove_if_empty(folder):
+    with contextlib.suppress(OSError):
+        folder.rmdir()
+
+
 def _load(path):
     """The Function stored at ``path`` (None if it cannot be read), its library file removed."""
-    # loading writes an empty jit_tmp*.c into the current directory (removed only when the
-    # Function is freed, so left behind at exit): load inside a scratch folder, then remove it
-    with _scratch() as folder:
-        try:
-            f = ca.Function.load(str(path))
-        except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
-            f = None
-    shutil.rmtree(folder, ignore_errors=True)
+    cwd = os.getcwd()
+    os.chdir(_load_dir())  # CasADi's empty jit_tmp*.c goes there (see _load_dir)
+    try:
+        f = ca.Function.load(str(path))
+    except Exception:  # noqa: BLE001 - a cache must never break a run: rebuild
+        f = None
+    finally:
+        os.chdir(cwd)
     if f is None:
         return None
     _remove_loaded_libraries()
