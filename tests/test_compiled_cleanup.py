@@ -24,12 +24,16 @@ def test_loaded_jit_libraries_are_removed_and_nothing_else(tmp_path):
     for k in keep:
         k.write_bytes(b"")
     maps = tmp_path / "maps"
+    again = tmp_path / "lsindy_jit_def" / "tmp_casadi_compiler_shellZz9.so"
+    again.parent.mkdir()
+    again.write_bytes(b"")  # written back by a second load; its first copy is still mapped
     maps.write_text("7f0000-7f1000 r-xp 00000000 08:01 1234    " + str(lib) + "\n"
+                    "7f4000-7f5000 r-xp 00000000 08:01 77    " + str(again) + " (deleted)\n"
                     "7f1000-7f2000 rw-p 00000000 00:00 0 \n"            # anonymous: no path
                     "7f2000-7f3000 r-xp 00000000 08:01 99   [vdso]\n"
                     + "".join(f"7f3000-7f4000 r-xp 00000000 08:01 5 {k}\n" for k in keep))
-    assert compiled._remove_loaded_libraries(str(maps)) == [lib]
-    assert not jit.exists()                  # the emptied folder goes too
+    assert compiled._remove_loaded_libraries(str(maps)) == [lib, again]
+    assert not jit.exists() and not again.parent.exists()  # the emptied folders go too
     assert all(k.exists() for k in keep)
     assert compiled._remove_loaded_libraries(str(tmp_path / "no-maps")) == []
 

@@ -86,7 +86,10 @@ def _remove_loaded_libraries(maps="/proc/self/maps"):
             fields = [line.split(None, 5) for line in fh]
     except OSError:
         return []
-    paths = {f[5].strip() for f in fields if len(f) == 6}
+    # a library loaded again from the cache is written back to the same path, and the loader
+    # reuses the mapping of the first (removed) copy, listed as "PATH (deleted)": the new copy
+    # at PATH is then not mapped by anyone and goes too
+    paths = {f[5].strip().removesuffix(" (deleted)") for f in fields if len(f) == 6}
     removed = []
     for path in sorted(paths):
         p = Path(path)
