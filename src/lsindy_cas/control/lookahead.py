@@ -17,6 +17,7 @@ import casadi as ca
 import numpy as np
 
 from .._validate import check_int
+from .fastcall import NumericFunction
 
 __all__ = ["build_lookahead"]
 
@@ -48,8 +49,10 @@ def build_lookahead(ocp, depth, extra_penalty=None, bound_weight=1e5):
 
     Returns
     -------
-    casadi.Function
-        ``(x0 (n_state,), X (n_state, N) planned x_1..x_N, U (1, N) planned inputs,
+    NumericFunction
+        A CasADi function called on numbers without conversions
+        (:class:`~lsindy_cas.control.fastcall.NumericFunction`; the function itself is its
+        ``f``): ``(x0 (n_state,), X (n_state, N) planned x_1..x_N, U (1, N) planned inputs,
         free (1, N) 1 where the planned input is strictly inside the level range,
         gain (n_state,), bias (n_state,) an online correction of the enumerated steps:
         ``x+ = F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``) -> cost (n_levels**depth,)``;
@@ -127,5 +130,6 @@ def build_lookahead(ocp, depth, extra_penalty=None, bound_weight=1e5):
     for x, c in zip(frontier, costs):
         d = x - x_ref
         leaf.append(c + ca.dot(s, d) + 0.5 * ca.bilin(P, d, d))
-    return ca.Function("lookahead", [x0, X, U, free, gain, bias], [ca.vertcat(*leaf)],
-                       ["x0", "X", "U", "free", "gain", "bias"], ["cost"])
+    return NumericFunction(ca.Function("lookahead", [x0, X, U, free, gain, bias],
+                                       [ca.vertcat(*leaf)],
+                                       ["x0", "X", "U", "free", "gain", "bias"], ["cost"]))

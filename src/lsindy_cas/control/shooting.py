@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 
 from .compiled import check_compiler, compiled_function, compiled_nlpsol
+from .fastcall import NumericFunction
 from .watchdog import Watchdog
 
 __all__ = ["ROBUST_SOLVERS", "SOLVERS", "MultipleShootingNLP", "check_solver_available",
@@ -217,7 +218,7 @@ class MultipleShootingNLP:
         self.watchdog = Watchdog(WATCHDOG_SECONDS)  # for the fatrop solves
         # fatrop loops without end from a guess where a function evaluation fails (NaN) or
         # that is far from dynamically consistent: such a guess is refused (see solve)
-        self._fg = ca.Function("fg", [nlp["x"], p], [nlp["f"], nlp["g"]])
+        self._fg = NumericFunction(ca.Function("fg", [nlp["x"], p], [nlp["f"], nlp["g"]]))
         robust = {}
         for kind, name in (("cold", cold_solver), ("recover", recover_solver)):
             if name not in robust:
@@ -387,8 +388,8 @@ class MultipleShootingNLP:
         evaluation; a diverged plan whose gaps were 1e82), where IPOPT stops at once.
         """
         f, g = self._fg(z, p)
-        g = np.asarray(g, dtype=float).ravel()
-        if not (np.isfinite(float(f)) and np.all(np.isfinite(g))):
+        g = g.ravel()
+        if not (np.isfinite(f.item()) and np.all(np.isfinite(g))):
             return False
         return bool(np.max(np.abs(g[self._gap_rows]), initial=0.0) <= GUESS_GAP)
 
