@@ -52,7 +52,7 @@ def test_compiling_and_loading_leave_no_temporary_files(tmp_path, monkeypatch, c
     """Nothing is left in the working or the temporary folder, and CasADi does not warn
     ("Failed to remove ...jit_tmp*.c") when a loaded Function is freed: the empty C file that
     loading writes stays in the load folder (the cache's ``jit-load``; cache off: one
-    ``lsindy_jit_load_*`` folder per process, removed at exit) until CasADi removes it."""
+    ``lsindy_jit_load_*`` folder per process, removed at exit if empty) until CasADi removes it."""
     scratch, cwd = tmp_path / "tmp", tmp_path / "cwd"
     scratch.mkdir()
     cwd.mkdir()

@@ -20,7 +20,8 @@ any time.  Nothing is left in the temporary folder: CasADi's C sources and libra
 removed once loaded (before issue 16 a ``/tmp/lsindy_jit_*`` folder, often with a 2 MB
 library, stayed behind per compile and per load).  Loading also writes an empty ``jit_tmp*.c``
 that CasADi removes when the Function is freed; it goes to the cache folder's ``jit-load``
-(cache off: a per-process ``lsindy_jit_load_*`` folder, removed at exit if empty).
+(cache off: a per-process ``lsindy_jit_load_*`` folder, removed at exit if every Function was
+freed by then, else left empty).
 """
 
 from __future__ import annotations
