@@ -1,6 +1,8 @@
 """``lsindy export``: a saved model's ODE and RK4 step as C code."""
 from __future__ import annotations
 
+import sys
+
 from ._common import command
 
 EXPORT_EXAMPLE = """example:
@@ -23,7 +25,6 @@ def run(args) -> int:
                      source=str(args.model))
     print("written: " + ", ".join(str(p) for p in paths))
     if getattr(model, "energy_scale_", "absolute") == "relative":
-        import sys
         print("note: the energy is relative (passive data without --scale): the response to u "
               "is scaled by an unknown factor (README.md)", file=sys.stderr)
     return 0
