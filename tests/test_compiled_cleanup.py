@@ -90,3 +90,23 @@ def test_compiling_and_loading_leave_no_temporary_files(tmp_path, monkeypatch, c
         for folder in scratch.glob("lsindy_jit_load_*"):
             compiled._remove_if_empty(folder)   # what runs at exit
     assert list(scratch.iterdir()) == []
+
+
+def test_load_folder_sweeps_files_left_by_functions_alive_at_exit(tmp_path, monkeypatch):
+    """A Function alive at a process's exit is never freed, so CasADi never removes its empty
+    jit_tmp*.c: the next load removes such files once older than a day, nothing else."""
+    import os
+    import time
+
+    monkeypatch.setenv("LSINDY_CACHE_DIR", str(tmp_path))
+    load = tmp_path / "jit-load"
+    load.mkdir()
+    old, fresh, kept = load / "jit_tmpOld123.c", load / "jit_tmpNew456.c", load / "jit_tmpBig.c"
+    for p in (old, fresh):
+        p.write_bytes(b"")
+    kept.write_text("int x;")  # not an empty placeholder: not ours to remove
+    stale = time.time() - compiled.STALE_SECONDS - 60
+    os.utime(old, (stale, stale))
+    os.utime(kept, (stale, stale))
+    assert compiled._load_dir() == load
+    assert not old.exists() and fresh.exists() and kept.exists()

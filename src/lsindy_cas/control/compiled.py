@@ -21,7 +21,8 @@ removed once loaded (before issue 16 a ``/tmp/lsindy_jit_*`` folder, often with 
 library, stayed behind per compile and per load).  Loading also writes an empty ``jit_tmp*.c``
 that CasADi removes when the Function is freed; it goes to the cache folder's ``jit-load``
 (cache off: a per-process ``lsindy_jit_load_*`` folder, removed at exit if every Function was
-freed by then, else left empty).
+freed by then, else left empty).  A Function still alive at exit is never freed, so its file
+stays: empty files older than a day are swept from ``jit-load`` at the next load.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import json
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import casadi as ca
@@ -133,12 +135,30 @@ def _load_dir():
     folder = cache_dir()
     if folder is not None:
         with contextlib.suppress(OSError):
-            (Path(folder) / "jit-load").mkdir(parents=True, exist_ok=True)
-            return Path(folder) / "jit-load"
+            load = Path(folder) / "jit-load"
+            load.mkdir(parents=True, exist_ok=True)
+            _sweep(load)
+            return load
     if _LOAD_TMP is None or not _LOAD_TMP.is_dir():
         _LOAD_TMP = Path(tempfile.mkdtemp(prefix="lsindy_jit_load_"))
         atexit.register(_remove_if_empty, _LOAD_TMP)  # empty if every Function was freed
     return _LOAD_TMP
+
+
+#: age (s) after which an empty ``jit_tmp*.c`` in the load folder is taken as left behind: a
+#: Function still alive at a process's exit is never freed, so CasADi never removes its file
+STALE_SECONDS = 86400.0
+
+
+def _sweep(folder):
+    """Remove the empty ``jit_tmp*.c`` files in ``folder`` older than :data:`STALE_SECONDS`
+    (one per ``--jit`` run was left by a Function alive at exit)."""
+    now = time.time()
+    for p in folder.glob("jit_tmp*.c"):
+        with contextlib.suppress(OSError):
+            st = p.stat()
+            if st.st_size == 0 and now - st.st_mtime > STALE_SECONDS:
+                p.unlink()
 
 
 def _remove_if_empty(folder):
