@@ -319,6 +319,20 @@ def test_closed_loop_random_starts_succeed(ctrl, plant, i):
     _check_episode(run_episode(ctrl, plant, random_starts(20, seed=0)[i]), ctrl)
 
 
+def test_reset_makes_an_episode_independent_of_the_ones_before(model, plant):
+    # the benchmarks reuse one controller for a cell's starts: after reset() (run_episode calls
+    # it) nothing may carry over (warm start, online correction, rounding memory, recovery state)
+    used = SwingUpMPC(model, force_set=FORCES, dt=0.05)
+    heavy = Plant(systems.cart_pendulum(mc=1.1, mp=0.09, L=1.1), 0.05)   # loads the correction
+    for x0 in random_starts(2, seed=3):
+        run_episode(used, heavy, x0, t_end=4.0)
+    x0 = random_starts(20, seed=0)[4]
+    a = run_episode(used, plant, x0, t_end=4.0)
+    b = run_episode(SwingUpMPC(model, force_set=FORCES, dt=0.05), plant, x0, t_end=4.0)
+    np.testing.assert_array_equal(a.forces, b.forces)
+    np.testing.assert_array_equal(a.X, b.X)
+
+
 def test_evaluate_applies_the_issue_criterion():
     t = np.linspace(0, 10, 1001)
     X = np.zeros((t.size, 4))

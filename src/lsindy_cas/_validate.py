@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import numbers
 
-__all__ = ["check_choice", "check_int", "check_real"]
+__all__ = ["check_choice", "check_int", "check_real", "relative_energy"]
 
 
 def check_int(name: str, value, *, low: int | None = None, high: int | None = None,
@@ -55,3 +55,10 @@ def check_choice(name: str, value, options):
     if value not in tuple(options):
         raise ValueError(f"{name} must be one of {tuple(options)}, got {value!r}")
     return value
+
+
+def relative_energy(model) -> bool:
+    """Whether ``model`` knows its energy only up to a constant factor: identified from passive
+    data without a scale record (``energy_scale_ == "relative"``), so the input's effect is unknown.
+    Anything without the attribute (a system, an older model) counts as absolute."""
+    return getattr(model, "energy_scale_", "absolute") == "relative"

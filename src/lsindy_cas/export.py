@@ -89,7 +89,7 @@ def export_c(model, folder, *, dt: float = 0.05, n_substeps: int = 1, name: str 
     import casadi as ca
 
     from ._io import atomic_write, existing_dir
-    from ._validate import check_int, check_real
+    from ._validate import check_int, check_real, relative_energy
     from ._version import __version__
     from .control.ocp import rk4_step
 
@@ -118,6 +118,6 @@ def export_c(model, folder, *, dt: float = 0.05, n_substeps: int = 1, name: str 
         coords=", ".join(coords), state=", ".join(coords + [c + "_dot" for c in coords]),
         inputs=", ".join("Q_" + c for c in coords), nx=nx, nu=nu, dt=dt, n_sub=n_substeps,
         relative=(_RELATIVE.format(term=getattr(model, "normalised_by_", None))
-                  if getattr(model, "energy_scale_", "absolute") == "relative" else ""))
+                  if relative_energy(model) else ""))
     written.append(atomic_write(folder / "README.md", lambda t: Path(t).write_text(text)))
     return written

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._validate import relative_energy
 
 __all__ = ["simplify", "plain", "pretty", "latex", "describe", "symbol_latex", "decimal_place",
            "format_pm", "round_coef"]
@@ -313,7 +314,7 @@ def describe(model, digits: int | None = None, style: str = "pretty") -> str:
         H, L = model.hamiltonian_, model.lagrangian_
         eoms = model.equations_of_motion()
     R = getattr(model, "rayleigh_", 0)         # friction: Rayleigh function, forces −∂R/∂q̇
-    note = ([] if getattr(model, "energy_scale_", "absolute") != "relative" else
+    note = ([] if not relative_energy(model) else
             [f"(energy relative: H, L, R up to a constant factor; {model.normalised_by_} has "
              "coefficient 1)"])
     if style == "latex":
@@ -361,7 +362,7 @@ def model_text(self) -> str:
     lines = [f"H = {t['hamiltonian']}", f"L = {t['lagrangian']}"]
     if self.has_friction_:
         lines.append(f"R = {t['rayleigh']}   (friction forces -dR/dq_dot)")
-    if getattr(self, "energy_scale_", "absolute") == "relative":
+    if relative_energy(self):
         lines.append(f"energy relative: H, L and R up to a constant factor "
                      f"(normalised: coefficient of {self.normalised_by_} = 1)")
     lines.append("equations of motion:")

@@ -19,12 +19,13 @@ def run(args) -> int:
     if args.substeps < 1:
         raise ValueError(f"--substeps must be a positive integer, got {args.substeps}")
     from .._io import existing_dir
+    from .._validate import relative_energy
     folder = existing_dir(args.c, "--c")       # checked before the model is read
     model = LagrangianSINDy.load(args.model)
     paths = export_c(model, folder, dt=args.dt, n_substeps=args.substeps, name=args.name,
                      source=str(args.model))
     print("written: " + ", ".join(str(p) for p in paths))
-    if getattr(model, "energy_scale_", "absolute") == "relative":
+    if relative_energy(model):
         print("note: the energy is relative (passive data without --scale): the response to u "
               "is scaled by an unknown factor (README.md)", file=sys.stderr)
     return 0

@@ -27,7 +27,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .._validate import check_real
+from .._validate import check_real, relative_energy
 from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
 from .sequence_balancer import SequenceBalancer
@@ -263,7 +263,7 @@ class SwingUpMPC(DiscreteInputMPC):
         coords = getattr(model, "coords_", None) or getattr(model, "coords", None)
         if coords is None or not hasattr(model, "ode"):
             raise TypeError("model must be a fitted cart-pendulum model with coords_ and ode().")
-        if getattr(model, "energy_scale_", "absolute") == "relative":
+        if relative_energy(model):
             raise ValueError("the model's energy is relative (passive data without a scale "
                              "record): the force's effect is known only up to a constant factor, "
                              "so it cannot be controlled; identify it with a scale record "

@@ -30,7 +30,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from .._validate import check_int, check_real
+from .._validate import check_int, check_real, relative_energy
 from ..mechanics.parametric import DEFAULT_EPS, ParametricDynamics
 
 __all__ = ["RefineResult", "refine", "refine_model", "check_uniform", "current_refinement",
@@ -360,7 +360,7 @@ def refine_model(model, trajectories, interval: float = 0.25, steps: int = 2,
     rho = np.asarray(getattr(model, "rayleigh_coef_", np.zeros(0)), float).copy()
     D = [int(j) for j in np.flatnonzero(rho)]
     fixed = ()
-    if getattr(model, "energy_scale_", "absolute") == "relative":
+    if relative_energy(model):
         fixed = (lib.exprs[lib.index(model.normalised_by_)],)
     elif all(not np.any(tr.Q) for tr in runs):
         kinetic = [j for j, d in zip(S, degrees) if d == 2]

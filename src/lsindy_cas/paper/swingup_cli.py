@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .._validate import check_choice, check_int, check_real
+from .._validate import check_choice, check_int, check_real, relative_energy
 
 __all__ = ["add_swingup_arguments", "run_from_args"]
 
@@ -112,7 +112,7 @@ def run_from_args(args):
         from ..identify.estimator import LagrangianSINDy
 
         model = LagrangianSINDy.load(args.model)
-        if getattr(model, "energy_scale_", "absolute") == "relative":
+        if relative_energy(model):
             raise ValueError(f"--model {args.model}: the energy is relative (passive data "
                              "without --scale): the force's effect is unknown up to a factor; "
                              "identify with --scale TRAJ")
