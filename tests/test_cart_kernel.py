@@ -41,7 +41,8 @@ def test_a_far_track_leaves_the_pole_kernel():
 def test_a_shorter_track_never_enlarges_the_kernel():
     """Every sequence that keeps the cart within 1 m keeps it within 3 m: the centre slice's
     viable share can only shrink with the track (same pole grid)."""
-    shares = [float(np.mean(kernel(1.0, 0.1, 1.0, n_pole=16, n_cart=16,
+    # 12 points per axis (3 s; 16: 10 s): shares 0.91 / 0 / 0 here (16: 0.94 / 0.94 / 0)
+    shares = [float(np.mean(kernel(1.0, 0.1, 1.0, n_pole=12, n_cart=12,
                                    track=t).centre_slice() <= 0)) for t in (3.0, 1.0, 0.3)]
     assert shares[0] >= shares[1] >= shares[2]
     assert shares[0] > shares[2]
