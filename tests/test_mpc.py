@@ -511,6 +511,30 @@ def test_balance_option_bad_input(model):
     assert SwingUpMPC(model, balance=False).balancer is None
 
 
+def test_bad_controller_options_raise_before_the_nlp_is_built(model, monkeypatch):
+    """Balancer, guard and solver options are checked before the lookahead and the NLP (the
+    heavy part of building a controller) are built."""
+    import lsindy_cas.control.mpc as mpc_module
+
+    def heavy(*args, **kwargs):
+        raise AssertionError("built before the options were checked")
+
+    monkeypatch.setattr(mpc_module, "MultipleShootingNLP", heavy)
+    monkeypatch.setattr(mpc_module, "build_lookahead", heavy)
+    for kwargs, exc, word in [(dict(balance={"horizon": 0}), ValueError, "horizon"),
+                              (dict(balance={"rate_band": -0.1}), ValueError, "rate_band"),
+                              (dict(balance={"method": "sequence", "max_frontier": 0}),
+                               ValueError, "max_frontier"),
+                              (dict(force_set=(-10.0, 10.0), balance={}), ValueError, "0 in"),
+                              (dict(guard={"margin": -1.0}), ValueError, "margin"),
+                              (dict(jit="yes"), ValueError, "jit"),
+                              (dict(max_iter=0), ValueError, "max_iter")]:
+        with pytest.raises(exc, match=word):
+            SwingUpMPC(model, **kwargs)
+    with pytest.raises(AssertionError, match="built before"):   # good options: built
+        SwingUpMPC(model)
+
+
 def test_balanced_steps_skip_the_solve_and_keep_the_plan_aligned(model):
     """solve_balanced=False (default): a step the own rule decides returns its level without
     a solve, shifts the warm start by one interval, and the next solve starts from it."""

@@ -306,14 +306,12 @@ class SwingUpMPC(DiscreteInputMPC):
             w["top_rate_band"] = self.TOP_RATE_KICKS * kick
         sequence = kind is SequenceBalancer or (kind == "auto" and kick >= self.SEQUENCE_KICK)
         if sequence:
-            # the warm SQP's cap of 7 (DiscreteInputMPC) brings the pulse balancer's plants
-            # under 20 ms at p99 at no loss; on the sequence balancer's it cost 3 of 240
-            # nominal and 3 of 208 mismatched family episodes: 10 there
+            # the warm SQP's cap of 7 (p99 under 20 ms on the pulse balancer's plants) cost 3 of
+            # 240 nominal and 3 of 208 mismatched family episodes on the sequence one's: 10 there
             options.setdefault("max_iter", self.SEQUENCE_MAX_ITER)
         if "top_rate" not in (weights or {}) and sequence:
-            # the top-rate term was measured to help the pulse balancer's plants (paper plant:
-            # no mismatched start lost with fatrop) and to hurt the sequence balancer's (MuJoCo
-            # light cart: 20/20 -> 16/20): by default it is on only for the former
+            # measured to help the pulse balancer's plants (paper plant: no mismatched start lost
+            # with fatrop), to hurt the sequence balancer's (MuJoCo light cart: 20/20 -> 16/20)
             w["top_rate"] = 0.0
         if not isinstance(guard, (bool, dict)):
             raise TypeError(f"guard must be True, False or a dict of options, got "
@@ -325,9 +323,8 @@ class SwingUpMPC(DiscreteInputMPC):
         x = ca.SX.sym("x", 4)
         # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
         half = (x[ip] - self.upright) / 2
-        # arriving at the top slowly: the pole rate beyond a band, weighted by cos^4(phi / 2)
-        # (1 at the top, 0 at the bottom); a plan that comes up fast is caught only if the
-        # model is right, and a plant 10 % off overshoots and spins around (issue 16)
+        # arriving at the top slowly: the pole rate beyond a band, weighted by cos^4(phi / 2);
+        # a fast plan is caught only if the model is right (10 % off: it spins around, issue 16)
         top = ca.fmax(ca.fabs(x[2 + ip]) * ca.cos(half) ** 4 - w["top_rate_band"], 0)
         r = ca.vertcat(ca.sqrt(2 * w["angle"]) * ca.sin(half),
                        ca.sqrt(w["position"]) * x[ic] / self.track_limit,
@@ -342,10 +339,9 @@ class SwingUpMPC(DiscreteInputMPC):
         options.setdefault("lookahead_penalty", ca.Function("band", [x], [band]))
         r_end = ca.sqrt(w["terminal"]) * r
         if "energy" not in (weights or {}) and sequence:
-            # the default is for the slow pendulums of the pulse balancer, whose 2 s plans
-            # cannot see the top from rest; on the sequence balancer's plants it only reshuffled
-            # hand-overs (60-start family: nominal 485 -> 485, mismatch 367 -> 364; MuJoCo
-            # light cart 20/20 -> 18/20)
+            # for the pulse balancer's slow pendulums, whose 2 s plans cannot see the top from
+            # rest; on the sequence balancer's plants it only reshuffled hand-overs (60-start
+            # family: nominal 485 -> 485, mismatch 367 -> 364; MuJoCo light cart 20 -> 18/20)
             w["energy"] = 0.0
         if check_real("weights['energy']", w["energy"], nonnegative=True) > 0:
             # the plan's end: the pole's energy against its value upright (a slope where the
@@ -358,13 +354,21 @@ class SwingUpMPC(DiscreteInputMPC):
                     raise
                 w["energy"] = 0.0
         self.weights = w
+        self.cart_index, self.pole_index = ic, ip
+        # built by _before_build, after the model's step and before the NLP (bad options first)
+        self._parts = (ode, guard, balance, kind, balance_options, track_margin)
         super().__init__(ode, force_set, input_index=ic,
                          stage_residual=ca.Function("r", [x], [r]),
                          terminal_residual=ca.Function("rN", [x], [r_end]),
                          dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
                          input_weight=w["input"], **options)
-        self.cart_index, self.pole_index = ic, ip
         self.plan_gain_index = 2 + ip  # the plan uses the pole's input gain (adapt_plan)
+
+    def _before_build(self):
+        """The track guard and the balancer(s), from the model's step (DiscreteInputMPC hook)."""
+        ode, guard, balance, kind, balance_options, track_margin = self._parts
+        del self._parts
+        ic, ip = self.cart_index, self.pole_index
         self.guard = None
         if guard is not False:
             self.guard = TrackGuard(self.step_function, self.levels, cart_index=ic,

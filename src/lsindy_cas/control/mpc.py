@@ -169,8 +169,8 @@ class DiscreteInputMPC:
                  lookahead_penalty=None, recovery=None, cold=None,
                  recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5,
                  adapt_plan=True, solve_balanced=False, jit=False):
-        self.ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt, horizon,
-                       state_lb, state_ub, input_weight, n_substeps, levels_name="force_set")
+        self.ocp = ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt,
+                             horizon, state_lb, state_ub, input_weight, n_substeps, "force_set")
         self.solver = check_choice("solver", solver, SOLVERS)
         self.relaxation = check_choice("relaxation", relaxation, ("poc", "continuous"))
         self.rounding = check_choice("rounding", rounding, (*ROUNDINGS, "lookahead"))
@@ -187,10 +187,21 @@ class DiscreteInputMPC:
         if not 0 < forgetting <= 1:
             raise ValueError(f"adapt_forgetting must be in (0, 1], got {adapt_forgetting!r}.")
         max_gain = check_real("adapt_max_gain", adapt_max_gain, nonnegative=True)
-        ocp = self.ocp
         self.levels, self.dt, self.horizon = ocp.levels, ocp.dt, ocp.horizon
         self.n_state, self.n_input, self.input_index = ocp.n_state, ocp.n_input, ocp.input_index
         self.step_function = ocp.step
+        max_iter = check_int("max_iter", max_iter, low=1)
+        tol, jit = check_real("tol", tol, positive=True), check_choice("jit", jit, (False, True))
+        if recover_after is None:
+            # continue: 3 (10: mismatch start 15 of seed 0 ran 34 steps on stale plans)
+            recover_after = 3 if self.recovery == "continue" else 1
+        self.recover_after = check_int("recover_after", recover_after, low=0)
+        self.adapt, self.adapt_forgetting, self.adapt_max_gain = bool(adapt), forgetting, max_gain
+        #: online correction of one-step predictions (None: ``adapt=False``), for every rule
+        self.correction = (InputGainCorrection(self.step_function, self.input_index,
+                                               forgetting=forgetting, max_gain=max_gain)
+                           if self.adapt else None)
+        self._before_build()  # a subclass's own parts, checked before the heavy build
         self._lookahead = None
         if rounding == "lookahead":
             self._lookahead = build_lookahead(ocp, depth, lookahead_penalty)
@@ -199,28 +210,17 @@ class DiscreteInputMPC:
         else:
             self._rounder = ROUNDINGS[rounding](self.levels.size)
         self.nlp = MultipleShootingNLP(
-            ocp, self.relaxation, self.solver, check_int("max_iter", max_iter, low=1),
-            check_real("tol", tol, positive=True), inexact_tol=inexact_tol,
-            cold_solver=cold_solver, recover_solver=recover_solver,
-            jit=check_choice("jit", jit, (False, True)))
-        self.accept_inexact = bool(accept_inexact)
-        self.solve_balanced = bool(solve_balanced)
-        if recover_after is None:
-            # continue: 3 (with 10, mismatch start 15 of seed 0 ran 34 steps on stale plans
-            # and did not settle; with 2 or 3 it settles at 2.5 s)
-            recover_after = 3 if self.recovery == "continue" else 1
-        self.recover_after = check_int("recover_after", recover_after, low=0)
+            ocp, self.relaxation, self.solver, max_iter, tol, inexact_tol=inexact_tol,
+            cold_solver=cold_solver, recover_solver=recover_solver, jit=jit)
+        self.accept_inexact, self.solve_balanced = bool(accept_inexact), bool(solve_balanced)
         self._rollout = self.step_function.mapaccum(self.horizon)
-        self.adapt, self.adapt_forgetting, self.adapt_max_gain = bool(adapt), forgetting, max_gain
-        #: the online correction of one-step predictions (None when ``adapt=False``); the
-        #: lookahead and any subclass's own rule (the balancer) predict with it
-        self.correction = (InputGainCorrection(self.step_function, self.input_index,
-                                               forgetting=forgetting, max_gain=max_gain)
-                           if self.adapt else None)
         self.adapt_plan = bool(adapt_plan) and self.adapt
         self.plan_gain_index = self.n_state // 2 + self.input_index
         self.stats = MPCStats()
         self.reset()
+
+    def _before_build(self):
+        """Hook: a subclass's own parts, once step and correction exist, before the NLP."""
 
     # --- episode state ---------------------------------------------------------------
     def reset(self):
