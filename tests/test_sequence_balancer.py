@@ -168,10 +168,12 @@ def test_cart_speed_term_is_the_centre_of_mass_speed(light, corner):
 def test_cart_speed_term_keeps_the_light_cart_on_the_track(light):
     """Start 11 of the family benchmark on 0.5/0.05/1.2 (exact model): without the term the
     cart creeps to the track's margin and the pole leaves the band in the last 3 s; with it
-    the episode succeeds."""
+    the episode succeeds (measured with the 16-interval horizon of stop 26, kept here; with
+    stop 30's 28 this start fails either way)."""
     from lsindy_cas.paper.swingup import random_starts, run_episode
-    system, ctrl = light
+    system, _ = light
     x0 = random_starts(20, 0)[11]
-    assert run_episode(ctrl, Plant(system, 0.05), x0).success
-    off = SwingUpMPC(system, balance={"method": "sequence", "speed_weight": 0.0})
+    on = SwingUpMPC(system, balance={"method": "sequence", "horizon": 16})
+    assert run_episode(on, Plant(system, 0.05), x0).success
+    off = SwingUpMPC(system, balance={"method": "sequence", "horizon": 16, "speed_weight": 0.0})
     assert not run_episode(off, Plant(system, 0.05), x0).success
