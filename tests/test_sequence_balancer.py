@@ -177,3 +177,23 @@ def test_cart_speed_term_keeps_the_light_cart_on_the_track(light):
     assert run_episode(on, Plant(system, 0.05), x0).success
     off = SwingUpMPC(system, balance={"method": "sequence", "horizon": 16, "speed_weight": 0.0})
     assert not run_episode(off, Plant(system, 0.05), x0).success
+
+
+def test_rollout_cost_is_the_interval_by_interval_sum(corner):
+    """The incumbents' costs (all stage costs in one call) equal simulating each sequence
+    interval by interval and adding stage, push and terminal costs in that order, bit for bit,
+    with the kernel term on and a correction's gain and bias in the predictions."""
+    _, ctrl = corner
+    b = ctrl.balancer
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        e = rng.normal(scale=[0.5, 0.05, 0.3, 0.3])
+        seqs = rng.integers(0, 3, size=(3, b.horizon))
+        gain_b, bias = b.B * (1 + rng.normal(scale=0.1)), rng.normal(scale=1e-3, size=4)
+        z, ref = np.tile(e, (3, 1)), np.zeros(3)
+        for k in range(b.horizon):
+            u = b.levels[seqs[:, k]]
+            z = z @ b.A.T + bias + u[:, None] * gain_b
+            ref += b._stage(z, 0.01) + b.push_weight * (u != 0)
+        ref += b._terminal(z)
+        np.testing.assert_array_equal(b._rollout_cost(e, seqs, gain_b, bias, 0.01), ref)

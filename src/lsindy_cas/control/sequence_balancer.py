@@ -186,8 +186,7 @@ class SequenceBalancer(PulseBalancer):
         if "max_pushes" in options:
             raise ValueError("max_pushes is an option of the pulse balancer; the sequence "
                              "balancer plans over all sequences.")
-        # the parent builds the linearisation, kappa, the unstable mode and the hand-over
-        # rule; its push enumeration is not used (one push keeps its tables small)
+        # the parent: linearisation, kappa, unstable mode, hand-over (its enumeration unused)
         super().__init__(step, ode, levels, cart_index=cart_index, pole_index=pole_index,
                          upright=upright, track_limit=track_limit, dt=dt, horizon=horizon,
                          max_pushes=1, rate_band=0.42 if rate_band is None else rate_band,
@@ -205,18 +204,15 @@ class SequenceBalancer(PulseBalancer):
                                   positive=True)
         self._band_w = np.array([1.0, 1.0, track_weight ** 2]) * self.violation_weight
         self.plan_seconds = []
-        # the pole alone at the upright, phi'' = omega2 * phi (no force): E = theta_dot^2 -
-        # omega2 * phi^2 is conserved between pushes (module docstring, "escape")
+        # the pole alone: phi'' = omega2 phi, E = theta_dot^2 - omega2 phi^2 kept between pushes
         self.omega2 = float(self.Ac[2 + self.ip, self.ip])
         self.escape_weight = check_real("escape_weight", escape_weight, nonnegative=True)
         self.escape_rate = max(0.0, self.kick - self.rate_band)
-        # cart speed per unit pole rate of one push: the cart speed "at zero pole rate",
-        # x_dot - ratio * theta_dot, changes only through the lean (not through the pushes)
+        # cart speed per pole rate of a push: x_dot - ratio * theta_dot moves only by the lean
         self.ratio = float(self.B[2 + self.ic] / self.B[2 + self.ip])
         self._lean_dt = self.lean_weight * self.dt
         self._comps = [self.ip, 2 + self.ip, self.ic]
-        # quadratic stage cost and its infinite-horizon value (DARE on the linearisation) as the
-        # terminal cost: the cost of returning the cart beyond the horizon
+        # quadratic stage cost; its infinite-horizon value (DARE) is the terminal cost
         from scipy.linalg import solve_discrete_are
         w = np.asarray(state_weights, dtype=float)
         Q = np.zeros((4, 4))
@@ -361,13 +357,18 @@ class SequenceBalancer(PulseBalancer):
         return self.levels[:, None] * b[None, :]
 
     def _rollout_cost(self, e, seqs, b, bias, phi_ref):
-        """Costs of whole level-index sequences ``seqs`` (n, horizon) from error state ``e``."""
-        z = np.tile(e, (seqs.shape[0], 1))
-        cost = np.zeros(seqs.shape[0])
-        for k in range(self.horizon):
-            u = self.levels[seqs[:, k]]
-            z = z @ self.A.T + bias + u[:, None] * b
-            cost += self._stage(z, phi_ref) + self.push_weight * (u != 0)
+        """Costs of whole level-index sequences ``seqs`` (n, horizon) from error state ``e``
+        (the stage costs of all intervals in one call, summed interval by interval)."""
+        n, H = seqs.shape
+        z, zs = np.tile(e, (n, 1)), np.empty((H, n, 4))
+        u = self.levels[seqs]
+        for k in range(H):
+            z = zs[k] = z @ self.A.T + bias + u[:, k, None] * b
+        stage = self._stage(zs.reshape(-1, 4), phi_ref).reshape(H, n)
+        push = self.push_weight * (u != 0)
+        cost = np.zeros(n)
+        for k in range(H):
+            cost += stage[k] + push[:, k]
         return cost + self._terminal(z)
 
     def search(self, e, gain=None, bias=None):
@@ -383,8 +384,7 @@ class SequenceBalancer(PulseBalancer):
             self._use_kernel(1.0 + gain[2 + self.ip])
         H, n_lev = self.horizon, self.levels.size
         phi_ref = self.reference_lean(e)
-        # the kernel term fades as the cart needs the lean to stop inside the track (the
-        # kernel knows only the pole): full weight at the centre, none at the track's margin
+        # the kernel (pole only) fades as the cart needs the lean: none at the track's margin
         fade = max(0.0, 1.0 - self.cart_urgency(e)) ** 2 if self.viability_cart else 1.0
         self._kernel_w = self.viability_weight * self.violation_weight * fade
         # incumbent: the previous plan shifted by one interval, and waiting throughout
