@@ -82,3 +82,63 @@ def test_relative_energy_model_is_refused(tmp_path, monkeypatch, capsys):
     absolute = dict(RELATIVE, energy_scale="absolute")
     path.write_text(json.dumps(absolute))
     assert SwingUpMPC(LagrangianSINDy.load(path), horizon=10).horizon == 10
+
+
+def _model_file(tmp_path, name, coords=("x", "theta"), mc=1.0, mp=0.1, L=1.0, g=9.81):
+    """A saved absolute model with the hand-derived cart-pendulum energy of (mc, mp, L)."""
+    import json
+    x, th = coords
+    path = tmp_path / name
+    path.write_text(json.dumps({
+        "coords": list(coords), "actuated": [x], "energy_scale": "absolute",
+        "hamiltonian_terms": {f"{x}_dot**2": (mc + mp) / 2, f"{th}_dot**2": mp * L ** 2 / 2,
+                              f"{th}_dot*{x}_dot*cos({th})": mp * L,
+                              f"cos({th})": -mp * g * L}}))
+    return path
+
+
+def test_a_model_of_another_rig_gets_a_note_about_the_simulated_plant(tmp_path, monkeypatch,
+                                                                      capsys):
+    """`lsindy swingup` simulates the paper's plant: a model of another cart-pendulum (the
+    family's 0.8/0.2/0.7) is run against it, with one line on stderr saying so (it used to fail
+    every episode, exit 1, without a word); a model of the paper plant gets no note."""
+    monkeypatch.setattr(swingup, "run_swingup", lambda model, **kw: {"scenarios": {}})
+    assert cli.main(["swingup", "--model", str(_model_file(tmp_path, "paper.json"))]) == 0
+    assert capsys.readouterr().err == ""
+    light = _model_file(tmp_path, "light.json", mc=0.8, mp=0.2, L=0.7)
+    assert cli.main(["swingup", "--model", str(light)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "paper's cart-pendulum" in err and "differ" in err
+
+
+def test_a_model_with_other_coordinate_names_is_refused_before_any_work(tmp_path, monkeypatch,
+                                                                          capsys):
+    monkeypatch.setattr(swingup, "run_swingup", lambda *a, **k: pytest.fail("ran"))
+    other = _model_file(tmp_path, "other.json", coords=("y", "phi"))
+    assert cli.main(["swingup", "--model", str(other)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "coordinates" in err and "['x', 'theta']" in err
+
+
+def test_plant_note_matches_coordinates_by_name():
+    """A model of the paper plant with its coordinates in the other order is the same plant."""
+    import casadi as ca
+    import numpy as np
+
+    from lsindy_cas.paper import systems
+    from lsindy_cas.paper.swingup_cli import plant_note
+
+    true = systems.cart_pendulum().ode()
+    x, u = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
+    swap = [1, 0, 3, 2]
+    swapped = ca.Function("ode", [x, u], [true(x[swap], u[[1, 0]])[swap]])
+
+    class Swapped:
+        coords_, actuated_ = ["theta", "x"], ["x"]
+
+        def ode(self):
+            return swapped
+
+    assert plant_note(Swapped()) is None
+    assert np.allclose(np.asarray(swapped([0.0, 0.1, 0.0, 0.0], [0.0, 10.0])).ravel()[[1, 0, 3, 2]],
+                       np.asarray(true([0.1, 0.0, 0.0, 0.0], [10.0, 0.0])).ravel())

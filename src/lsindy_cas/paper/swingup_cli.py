@@ -8,11 +8,46 @@ parser stays fast.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from .._validate import check_choice, check_int, check_real, relative_energy
 
-__all__ = ["add_swingup_arguments", "run_from_args"]
+__all__ = ["add_swingup_arguments", "plant_note", "run_from_args"]
+
+def plant_note(model, tol=0.05):
+    """One line for stderr when ``model`` is not a model of the plant ``lsindy swingup``
+    simulates (the paper's cart-pendulum): other coordinates, or accelerations more than ``tol``
+    off (relative, over 20 fixed random states and forces of +-10 N); None otherwise.  The
+    coordinates must be the plant's (``x``, ``theta``; checked by :func:`run_from_args`)."""
+    import numpy as np
+
+    from .systems import cart_pendulum
+
+    plant = cart_pendulum()
+    what = ("note: the simulated plant is the paper's cart-pendulum (m_c 1.0 kg, m_p 0.1 kg, "
+            "L 1.0 m); ")
+    rng = np.random.default_rng(0)
+    states = rng.uniform([-1.0, -np.pi, -2.0, -3.0], [1.0, np.pi, 2.0, 3.0], size=(20, 4))
+    forces = rng.choice([-10.0, 10.0], size=20)
+    coords = list(getattr(model, "coords_", None) or getattr(model, "coords", None))
+    order = [plant.coords.index(c) for c in coords]
+    order += [2 + i for i in order]                  # the model's state in the plant's order
+    f, g = model.ode(), plant.ode()
+    diff = ref = 0.0
+    for x, u in zip(states, forces):
+        push = np.zeros(2)
+        push[coords.index("x")] = u
+        a = np.empty(4)
+        a[order] = np.asarray(f(x[order], push), dtype=float).ravel()
+        b = np.asarray(g(x, [u, 0.0]), dtype=float).ravel()
+        diff, ref = diff + np.sum((a - b) ** 2), ref + np.sum(b ** 2)
+    off = float(np.sqrt(diff / ref))
+    if off > tol:
+        return what + (f"this model's accelerations differ from it by {100 * off:.0f} %, so the "
+                       "episodes test the controller against a plant it does not describe")
+    return None
+
 
 def add_swingup_arguments(parser):
     """Add the ``lsindy swingup`` options to an ``argparse`` parser."""
@@ -116,6 +151,13 @@ def run_from_args(args):
             raise ValueError(f"--model {args.model}: the energy is relative (passive data "
                              "without --scale): the force's effect is unknown up to a factor; "
                              "identify with --scale TRAJ")
+        coords = list(getattr(model, "coords_", None) or [])
+        if sorted(coords) != ["theta", "x"]:
+            raise ValueError(f"--model {args.model}: coordinates {coords}, but the simulated "
+                             "plant's are ['x', 'theta'] (cart position, pole angle from hanging)")
+        note = plant_note(model)
+        if note:
+            print(note, file=sys.stderr)
     report = swingup.run_swingup(model, episodes=args.episodes, seed=args.seed,
                                  scenarios=scenarios, out=args.out, json_path=args.json,
                                  controller_options=opts)
