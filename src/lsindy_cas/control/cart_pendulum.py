@@ -356,7 +356,7 @@ class SwingUpMPC(DiscreteInputMPC):
         self.weights = w
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)
-        self._parts = (ode, guard, balance, kind, balance_options, track_margin)
+        self._parts = (guard, balance, kind, balance_options, track_margin)
         super().__init__(ode, force_set, input_index=ic,
                          stage_residual=ca.Function("r", [x], [r]),
                          terminal_residual=ca.Function("rN", [x], [r_end]),
@@ -366,7 +366,7 @@ class SwingUpMPC(DiscreteInputMPC):
 
     def _before_build(self):
         """The track guard and the balancer(s), from the model's step (DiscreteInputMPC hook)."""
-        ode, guard, balance, kind, balance_options, track_margin = self._parts
+        guard, balance, kind, balance_options, track_margin = self._parts
         del self._parts
         ic, ip = self.cart_index, self.pole_index
         self.guard = None
@@ -378,7 +378,7 @@ class SwingUpMPC(DiscreteInputMPC):
         if balance is True and 0.0 not in self.levels:
             kind = None  # nothing to wait with: the relaxed plan decides everywhere
         self._escalation = None  # (pulse, sequence balancer) while "auto" may switch
-        build = (lambda k: k(self.step_function, ode, self.levels, cart_index=ic,
+        build = (lambda k: k(self.step_function, self.ocp.ode, self.levels, cart_index=ic,
                              pole_index=ip, upright=self.upright, track_limit=self.track_limit,
                              dt=self.dt, track_margin=track_margin, correction=self.correction,
                              **balance_options))

@@ -15,18 +15,20 @@ from .._validate import check_choice, check_int, check_real, relative_energy
 
 __all__ = ["add_swingup_arguments", "plant_note", "run_from_args"]
 
+
 def plant_note(model, tol=0.05):
     """One line for stderr when ``model`` is not a model of the plant ``lsindy swingup``
-    simulates (the paper's cart-pendulum): other coordinates, or accelerations more than ``tol``
-    off (relative, over 20 fixed random states and forces of +-10 N); None otherwise.  The
-    coordinates must be the plant's (``x``, ``theta``; checked by :func:`run_from_args`)."""
+    simulates (the paper's cart-pendulum): its accelerations more than ``tol`` off (relative,
+    over 20 fixed random states and forces of +-10 N); None otherwise.  The model's coordinates
+    must be the plant's, ``x`` and ``theta`` in any order (checked by :func:`run_from_args`)."""
     import numpy as np
 
     from .systems import cart_pendulum
 
     plant = cart_pendulum()
-    what = ("note: the simulated plant is the paper's cart-pendulum (m_c 1.0 kg, m_p 0.1 kg, "
-            "L 1.0 m); ")
+    p = plant.params
+    what = (f"note: the simulated plant is the paper's cart-pendulum (m_c {p['mc']} kg, "
+            f"m_p {p['mp']} kg, L {p['L']} m); ")
     rng = np.random.default_rng(0)
     states = rng.uniform([-1.0, -np.pi, -2.0, -3.0], [1.0, np.pi, 2.0, 3.0], size=(20, 4))
     forces = rng.choice([-10.0, 10.0], size=20)
