@@ -112,7 +112,7 @@ def test_escape_penalty_known_answer(corner):
     band) at phi*^2 = phi0^2 + (kick - rate_band)^2 / omega2; only its excess over the angle
     band is penalised, as a band violation."""
     system, ctrl = corner
-    assert ctrl.balancer.escape_weight == 0.0          # off by default
+    assert ctrl.balancer.turnaround and ctrl.balancer.escape_weight == 0.0  # off here
     b = SequenceBalancer(ctrl.step_function, system.ode(), ctrl.levels, cart_index=0,
                          pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05,
                          escape_weight=1.0)
@@ -147,6 +147,7 @@ def test_cart_speed_term_is_the_centre_of_mass_speed(light, corner):
     b = ctrl.balancer
     assert isinstance(b, SequenceBalancer) and not b.turnaround
     assert b.speed_weight == SequenceBalancer.SPEED_WEIGHT
+    assert b.escape_weight == SequenceBalancer.ESCAPE_WEIGHT > 0.0   # no turnaround: on
     assert corner[1].balancer.turnaround and corner[1].balancer.speed_weight == 0.0
     args = (ctrl.step_function, system.ode(), ctrl.levels)
     kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
@@ -168,14 +169,16 @@ def test_cart_speed_term_is_the_centre_of_mass_speed(light, corner):
 def test_cart_speed_term_keeps_the_light_cart_on_the_track(light):
     """Start 11 of the family benchmark on 0.5/0.05/1.2 (exact model): without the term the
     cart creeps to the track's margin and the pole leaves the band in the last 3 s; with it
-    the episode succeeds (measured with the 16-interval horizon of stop 26, kept here; with
-    stop 30's 28 this start fails either way)."""
+    the episode succeeds (measured with the 16-interval horizon and without the escape term,
+    as in stop 26, kept here; with stop 30's 28 this start fails either way, and with the
+    escape term of stop 31 it succeeds either way)."""
     from lsindy_cas.paper.swingup import random_starts, run_episode
     system, _ = light
     x0 = random_starts(20, 0)[11]
-    on = SwingUpMPC(system, balance={"method": "sequence", "horizon": 16})
+    stop26 = {"method": "sequence", "horizon": 16, "escape_weight": 0.0}
+    on = SwingUpMPC(system, balance=stop26)
     assert run_episode(on, Plant(system, 0.05), x0).success
-    off = SwingUpMPC(system, balance={"method": "sequence", "horizon": 16, "speed_weight": 0.0})
+    off = SwingUpMPC(system, balance=dict(stop26, speed_weight=0.0))
     assert not run_episode(off, Plant(system, 0.05), x0).success
 
 

@@ -38,10 +38,11 @@ of well under a second this is what makes the plan lean the pole so that the car
 to the centre (the DARE value of the full linearisation, computed for a continuous force,
 does not: it expects the cart to be returned by force).
 
-The escape term (off by default, ``escape_weight=0``): between pushes ``E = theta_dot^2 - omega2 *
-phi^2`` is conserved, and a push keeps the rate in the band only once ``|theta_dot| >= kick -
-rate_band``, reached at the lean ``phi*^2 = ((kick - rate_band)^2 - E) / omega2``; the term
-penalises ``phi*`` beyond the angle band (measured: docs/history/control.md).
+The escape term (on only where :attr:`turnaround` is False): between pushes ``E = theta_dot^2 -
+omega2 * phi^2`` is conserved, and a push keeps the rate in the band only once ``|theta_dot| >=
+kick - rate_band``, reached at the lean ``phi*^2 = ((kick - rate_band)^2 - E) / omega2``; the
+term penalises ``phi*`` beyond the angle band, so the plan avoids parking the pole at rest on
+top (the hover) where leaving it costs a band touch (docs/history/control.md).
 
 Viability: on the upright linearisation without cart friction the pole ``(phi, theta_dot)``
 does not depend on the cart, so whether it can be kept in the success band for ever is a 2-D
@@ -114,10 +115,10 @@ class SequenceBalancer(PulseBalancer):
         Closed-loop natural frequency (rad/s) of that LQR design, i.e. how fast the cart is
         to return (a slower return needs a smaller lean).
     lean_weight : float
-        Weight of the lean-reference term (small by default: the centring value returns the
-        cart).
-    escape_weight : float
-        Factor on the terminal escape penalty (module docstring); 0 (default) leaves it out.
+        Weight of the lean-reference term (small: the centring value returns the cart).
+    escape_weight : float, optional
+        Factor on the terminal escape penalty (module docstring); None: ``ESCAPE_WEIGHT`` if
+        :attr:`turnaround` is False, else 0 (off).
     viability : bool
         Penalise predicted pole states outside the pole's viability kernel
         (:mod:`lsindy_cas.control.viability`, built from the model's upright linearisation),
@@ -168,12 +169,14 @@ class SequenceBalancer(PulseBalancer):
     #: weight of the cart-speed term where the pole cannot turn around inside the band
     #: (0.5/0.05/1.2: 8/20 -> 13/20 nominal starts; docs/history/control.md)
     SPEED_WEIGHT = 300.0
+    #: factor on the escape term there (0.5/0.05/1.2, 60 starts: 26 -> 32 nominal)
+    ESCAPE_WEIGHT = 1.0
 
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=28, max_frontier=500, rate_band=None, violation_weight=1e4,
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
                  terminal_weight=1.0, lean_weight=1e-6, centre_weight=10.0, centre_frequency=0.5,
-                 escape_weight=0.0, viability=True, viability_weight=1.0,
+                 escape_weight=None, viability=True, viability_weight=1.0,
                  viability_margin=0.25, viability_gains=(1.0,), viability_stage=0.5,
                  viability_schedule=None, viability_stage_margin=0.25, viability_cart=True,
                  speed_weight=None, speed_time=2.0, **options):
@@ -206,6 +209,9 @@ class SequenceBalancer(PulseBalancer):
         self.plan_seconds = []
         # the pole alone: phi'' = omega2 phi, E = theta_dot^2 - omega2 phi^2 kept between pushes
         self.omega2 = float(self.Ac[2 + self.ip, self.ip])
+        self.turnaround = bool(np.sqrt(max(self.omega2, 0.0)) * BAND[0] >= self.kick - BAND[1])
+        if escape_weight is None:
+            escape_weight = 0.0 if self.turnaround else self.ESCAPE_WEIGHT
         self.escape_weight = check_real("escape_weight", escape_weight, nonnegative=True)
         self.escape_rate = max(0.0, self.kick - self.rate_band)
         # cart speed per pole rate of a push: x_dot - ratio * theta_dot moves only by the lean
@@ -222,9 +228,7 @@ class SequenceBalancer(PulseBalancer):
         self.Q = Q * self.dt
         self.P = terminal_weight * solve_discrete_are(self.A, self.B[:, None], self.Q,
                                                       np.array([[input_weight * self.dt]]))
-        # the slow subsystem: p = x - ratio * phi, v0 = x_dot - ratio * theta_dot obey
-        # p' = v0, v0' = kappa * phi (pushes do not move them); its LQR value with the lean as
-        # input, closed-loop frequency centre_frequency, is a terminal cost that returns the cart
+        # the cart's slow subsystem (p, v0), its LQR value a terminal cost (module docstring)
         self.centre_weight = check_real("centre_weight", centre_weight, nonnegative=True)
         wc = check_real("centre_frequency", centre_frequency, positive=True)
         from scipy.linalg import solve_continuous_are
@@ -237,7 +241,6 @@ class SequenceBalancer(PulseBalancer):
         self.P = self.P + self.centre_weight * T.T @ Pc @ T
         self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
         # the cart's speed term (module docstring): w = x_dot - (a_x / omega2) theta_dot
-        self.turnaround = bool(np.sqrt(max(self.omega2, 0.0)) * BAND[0] >= self.kick - BAND[1])
         if speed_weight is None:
             speed_weight = 0.0 if self.turnaround else self.SPEED_WEIGHT
         self.speed_weight = check_real("speed_weight", speed_weight, nonnegative=True)
@@ -353,9 +356,6 @@ class SequenceBalancer(PulseBalancer):
         phi = -(self.wn ** 2 * e[self.ic] + 2 * self.zeta * self.wn * v) / self.kappa
         return float(np.clip(phi, -self.max_lean, self.max_lean))
 
-    def _push_b(self, b):
-        return self.levels[:, None] * b[None, :]
-
     def _rollout_cost(self, e, seqs, b, bias, phi_ref):
         """Costs of whole level-index sequences ``seqs`` (n, horizon) from error state ``e``
         (the stage costs of all intervals in one call, summed interval by interval)."""
@@ -396,12 +396,12 @@ class SequenceBalancer(PulseBalancer):
         best_seq, best = cands[int(np.argmin(inc_costs))], float(inc_costs.min())
         states, costs = e[None, :], np.zeros(1)
         parents, moves = [], []
-        push_cost = self.push_weight * (self.levels != 0)
+        push_cost, push_b = self.push_weight * (self.levels != 0), self.levels[:, None] * b
         proven, nodes = True, 0
         for k in range(H):
             nxt = states @ self.A.T + bias
-            child = (nxt[:, None, :] + self._push_b(b)[None]).reshape(-1, 4)   # (M * L, 4)
-            c = (np.repeat(costs, n_lev) + np.tile(push_cost, costs.size)
+            child = (nxt[:, None, :] + push_b).reshape(-1, 4)   # (M * L, 4)
+            c = ((costs[:, None] + push_cost).ravel()
                  + self._stage(child, phi_ref, kernel=False))
             if k == H - 1:
                 c += self._terminal(child)
