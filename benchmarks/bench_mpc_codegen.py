@@ -56,10 +56,11 @@ def record_solves(ctrl, starts, rng):
     solve = nlp.solve
     log = []
 
-    def logged(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
-        out = solve(x_init, z0, lam_g0, lam_x0, kind, gain)
+    def logged(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0, ref=None):
+        out = solve(x_init, z0, lam_g0, lam_x0, kind, gain, ref)
         if kind == "warm":
-            log.append((nlp.parameters(x_init, gain), np.array(z0, float), np.array(lam_g0, float),
+            log.append((nlp.parameters(x_init, gain, ref), np.array(z0, float),
+                        np.array(lam_g0, float),
                         np.array(lam_x0, float), out[1]))
         return out
 

@@ -71,7 +71,7 @@ def test_lookahead_costs_equal_brute_force_up_to_a_constant(ocp, gain, bias):
     X = np.array(X).T
     look = build_lookahead(ocp, DEPTH)
     cost = np.asarray(look(x0, X, plan_u[None, :], np.ones((1, N)), np.broadcast_to(gain, 2),
-                           np.broadcast_to(bias, 2))).ravel()
+                           np.broadcast_to(bias, 2), np.zeros(2))).ravel()
     brute = []
     for seq in itertools.product(LEVELS, repeat=DEPTH):  # same order: first level slowest
         c, x = 0.0, x0
@@ -93,3 +93,22 @@ def test_depth_must_be_below_the_horizon(ocp):
         build_lookahead(ocp, N)
     with pytest.raises(ValueError, match="depth"):
         build_lookahead(ocp, 0)
+
+
+def test_reference_moves_the_costs(ocp):
+    """Costs measured from ``x - ref``: the double integrator's step commutes with a shift of
+    the position, so scoring from ``x0`` with ``ref`` equals scoring from ``x0 - ref`` with the
+    plan moved by ``-ref`` and no reference; and the reference changes the scores."""
+    x0, ref = np.array([0.2, -0.4]), np.array([0.7, 0.0])
+    plan_u = np.array([0.4, -0.3, 0.2, 0.5, -0.1])
+    X, xk = [], x0
+    for u in plan_u:
+        xk = _step(ocp, xk, u)
+        X.append(xk)
+    X = np.array(X).T
+    look = build_lookahead(ocp, DEPTH)
+    args = (plan_u[None, :], np.ones((1, N)), np.zeros(2), np.zeros(2))
+    with_ref = np.asarray(look(x0, X, *args, ref)).ravel()
+    moved = np.asarray(look(x0 - ref, X - ref[:, None], *args, np.zeros(2))).ravel()
+    np.testing.assert_allclose(with_ref, moved, rtol=1e-12, atol=1e-12)
+    assert np.max(np.abs(with_ref - np.asarray(look(x0, X, *args, np.zeros(2))).ravel())) > 0.1

@@ -198,7 +198,7 @@ def test_continued_recovery_warm_starts_from_the_failed_iterate(model):
     kinds = len(ctrl.stats.solve_kinds)
     seen = []
 
-    def failing(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
+    def failing(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0, ref=None):
         seen.append((kind, z0.copy()))
         z = z0.copy()
         z[ctrl.nlp._ic] = 1.0  # a marked iterate: every relaxed force 1 N
@@ -232,7 +232,7 @@ def test_cold_warm_solver_applies_its_iterate_and_counts_as_cold(model):
     ctrl.nlp.solve = record
     ctrl(np.array([0.0, 0.3, 0.0, 0.0]))
     assert kinds == ["warm"] and ctrl.stats.solve_kinds == ["cold"]
-    ctrl.nlp.solve = (lambda x, z0, lg, lx, kind="warm", gain=0.0:
+    ctrl.nlp.solve = (lambda x, z0, lg, lx, kind="warm", gain=0.0, ref=None:
                       ("failed", z0 * 0 + 2.0, lg, lx, 10))
     ctrl.nlp.last_violation = 0.0
     ctrl.reset()
@@ -551,9 +551,9 @@ def test_balanced_steps_skip_the_solve_and_keep_the_plan_aligned(model):
     seen = []
     solve = ctrl.nlp.solve
 
-    def record(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
+    def record(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0, ref=None):
         seen.append(z0.copy())
-        return solve(x_init, z0, lam_g0, lam_x0, kind=kind, gain=gain)
+        return solve(x_init, z0, lam_g0, lam_x0, kind=kind, gain=gain, ref=ref)
 
     ctrl.nlp.solve = record
     del ctrl._own_level  # back to the class's rule (None at this state: far from the top)

@@ -120,6 +120,34 @@ def test_input_gain_parameter_scales_the_plans_input(gain):
                                atol=1e-8)
 
 
+def test_reference_moves_the_costs_not_the_bounds():
+    """``solve(..., ref=r)`` measures the costs from ``x - r``: on the double integrator (its
+    dynamics do not depend on the position) the plan from ``x0`` equals the plan from ``x0 - r``
+    moved by ``r``; a state bound stays where it is (0.3 m binds with or without ``r``)."""
+    N, ref = 15, np.array([-0.6, 0.0])
+    costs = (lambda x: ca.vertcat(x[0] - 1.0, 0.1 * x[1]), lambda x: ca.vertcat(x[0] - 1.0, x[1]))
+    free = MultipleShootingNLP(_ocp(*costs, N, levels=(-1.0, 0.0, 1.0)), "continuous", "ipopt",
+                               max_iter=200, tol=1e-10)
+    x0 = np.array([0.1, 0.2])
+    plans = []
+    for start, r in ((x0, ref), (x0 - ref, None)):
+        outcome, z, *_ = free.solve(start, np.zeros(free.n_var), np.zeros(free.lbg.size),
+                                    np.zeros(free.n_var), kind="cold", ref=r)
+        assert outcome == "converged"
+        plans.append(free.unpack(z)[1])
+    np.testing.assert_allclose(plans[0], plans[1] + ref, atol=1e-6)
+    assert plans[0][-1, 0] == pytest.approx(0.4, abs=0.05)  # towards 1 m + ref
+    bounded = MultipleShootingNLP(_ocp(*costs, N, levels=(-1.0, 0.0, 1.0),
+                                       state_lb=[-np.inf, -np.inf], state_ub=[0.3, np.inf]),
+                                  "continuous", "ipopt", max_iter=200, tol=1e-9)
+    outcome, z, *_ = bounded.solve(np.zeros(2), np.zeros(bounded.n_var),
+                                   np.zeros(bounded.lbg.size), np.zeros(bounded.n_var),
+                                   kind="cold", ref=np.array([-0.5, 0.0]))
+    assert outcome == "converged"
+    states = bounded.unpack(z)[1]
+    assert 0.29 < np.max(states[:-1, 0]) <= 0.3 + 1e-6
+
+
 def test_plans_satisfy_dynamics_input_and_state_bounds():
     """Drive the position towards 1 m with it bounded by 0.3 m: the soft bound with an exact
     penalty holds (to solver tolerance), every shooting gap closes and the inputs stay in the

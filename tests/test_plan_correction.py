@@ -10,9 +10,9 @@ from lsindy_cas.mpc import SwingUpMPC
 def _recorded_gains(ctrl, x, steps=2):
     gains, solve = [], ctrl.nlp.solve
 
-    def record(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
+    def record(x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0, ref=None):
         gains.append(gain)
-        return solve(x_init, z0, lam_g0, lam_x0, kind=kind, gain=gain)
+        return solve(x_init, z0, lam_g0, lam_x0, kind=kind, gain=gain, ref=ref)
 
     ctrl.nlp.solve = record
     for _ in range(steps):

@@ -32,71 +32,9 @@ from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
 from .sequence_balancer import SequenceBalancer
 from .track_guard import TrackGuard
+from .upright import find_upright, handover_side, step_kick, upright_kick
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
-
-
-def find_upright(ode, cart_index, pole_index, n_grid=720):
-    """Pole angle of the unstable rest equilibrium of a cart-pendulum ODE.
-
-    Scans the pole's angular acceleration at rest with zero input over one revolution;
-    equilibria are its zeros, and the upright one is where it increases with the angle
-    (a displacement accelerates away).  Works for any angle convention of the model.
-
-    Parameters
-    ----------
-    ode : casadi.Function
-        ``(x (4,), u (2,)) -> xdot (4,)``, state ``[q, q_dot]``.
-    cart_index, pole_index : int
-        Positions of the cart and pole coordinates in ``q``.
-    n_grid : int
-        Grid points per revolution.
-
-    Returns
-    -------
-    float
-        Upright angle in ``[-pi, pi)``, radians.
-
-    Raises
-    ------
-    ValueError
-        If there is not exactly one unstable rest equilibrium per revolution.
-    """
-    grid = np.linspace(-np.pi, np.pi, n_grid, endpoint=False)
-    x = np.zeros((4, n_grid))
-    x[pole_index] = grid
-    acc = np.asarray(ode.map(n_grid)(x, np.zeros((2, n_grid))))[2 + pole_index]
-    nxt = np.roll(acc, -1)
-    ups = np.flatnonzero((acc < 0) & (nxt >= 0))
-    if ups.size != 1 or not np.all(np.isfinite(acc)):
-        raise ValueError("could not determine the upright angle from the model (expected one "
-                         "unstable rest equilibrium of the pole); pass upright= explicitly.")
-    i = ups[0]
-    step = 2 * np.pi / n_grid
-    angle = grid[i] + step * acc[i] / (acc[i] - nxt[i])
-    return float(wrap_angle(angle))
-
-
-def _step_kick(step, cart_index, pole_index, upright, levels):
-    """Pole-rate change (rad/s) over one period of the largest of ``levels``, from rest at the
-    upright, from the discrete step ``step(x, u)`` linearised there (:meth:`SwingUpMPC.kick`)."""
-    x0 = np.zeros(4)
-    x0[pole_index] = upright
-    u = ca.SX.sym("u", 2)
-    jac = ca.Function("kick", [u], [ca.jacobian(step(x0, u), u)])
-    b = np.asarray(jac(np.zeros(2)), dtype=float)[2 + pole_index, cart_index]
-    return float(abs(b) * np.max(np.abs(np.asarray(levels, dtype=float))))
-
-
-def _upright_kick(ode, cart_index, pole_index, upright, dt, n_substeps, force_set):
-    """:meth:`SwingUpMPC.kick` before the controller exists (0.0 if the arguments are bad:
-    they are checked, with a clear error, when the controller is built)."""
-    from .ocp import rk4_step
-    try:
-        step = rk4_step(ode, 4, 2, float(dt), int(n_substeps))
-        return _step_kick(step, cart_index, pole_index, upright, force_set)
-    except (TypeError, ValueError, RuntimeError):
-        return 0.0
 
 
 def _energy_gap(model, coords, cart_index, pole_index, upright):
@@ -216,6 +154,13 @@ class SwingUpMPC(DiscreteInputMPC):
         ``track_limit``, apply the level that reaches least far (counted in
         ``stats.n_guard``); a dict passes ``margin``, ``factor``, ``horizon`` to it.  ``False`` is the behaviour before issue 16 (the cart
         ran to 10.5 m on a plant that cannot be balanced).
+    handover : float, optional
+        Distance (m) from the track's centre at which the swing-up is to hand the pole to a
+        sequence balancer whose pushes must alternate (its ``turnaround`` False), on the side
+        the cart's slower creep leaves from (:func:`~lsindy_cas.control.upright.handover_side`,
+        decided at the first step after :meth:`reset`; the swing-up's costs are measured from
+        there, :attr:`reference`).  None: :attr:`HANDOVER_OFFSET` on such plants, else 0 (the
+        centre).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -238,6 +183,9 @@ class SwingUpMPC(DiscreteInputMPC):
         The balancer near the upright (``balance``).
     guard : TrackGuard or None
         The track guard (``guard``).
+    handover : float
+        Distance (m) of the hand-over from the centre; ``handover_side`` the episode's side
+        (+1, -1, 0; None before its first step).
     plan_ : dict
         Last relaxed plan: ``controls`` (horizon, n_control), ``forces`` (horizon,) relaxed
         forces (N), ``states`` (horizon, 4) predicted x_1..x_N, ``success``.
@@ -256,10 +204,13 @@ class SwingUpMPC(DiscreteInputMPC):
     TOP_RATE_KICKS = 3.0
     #: default warm SQP cap where the sequence balancer is chosen (elsewhere 7)
     SEQUENCE_MAX_ITER = 10
+    #: default ``handover`` (m) where the balancing pushes must alternate (0.5/0.05/1.2, 60
+    #: starts, exact model: 32 -> 44 nominal; 1.0 m: 42; docs/history/control.md, stop 31)
+    HANDOVER_OFFSET = 0.6
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
-                 balance=True, guard=True, **options):
+                 balance=True, guard=True, handover=None, **options):
         coords = getattr(model, "coords_", None) or getattr(model, "coords", None)
         if coords is None or not hasattr(model, "ode"):
             raise TypeError("model must be a fitted cart-pendulum model with coords_ and ode().")
@@ -300,7 +251,7 @@ class SwingUpMPC(DiscreteInputMPC):
                              f"{sorted(self.default_weights)}.")
         w = dict(self.default_weights, **(weights or {}))
         kind, balance_options = _balancer_kind(balance)  # checked before the NLP is built
-        kick = _upright_kick(ode, ic, ip, self.upright, dt, options.get("n_substeps", 1),
+        kick = upright_kick(ode, ic, ip, self.upright, dt, options.get("n_substeps", 1),
                              force_set)
         if w["top_rate_band"] is None:  # a plant-dependent rate: TOP_RATE_KICKS pushes' worth
             w["top_rate_band"] = self.TOP_RATE_KICKS * kick
@@ -356,7 +307,7 @@ class SwingUpMPC(DiscreteInputMPC):
         self.weights = w
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)
-        self._parts = (guard, balance, kind, balance_options, track_margin)
+        self._parts = (guard, balance, kind, balance_options, track_margin, handover)
         super().__init__(ode, force_set, input_index=ic,
                          stage_residual=ca.Function("r", [x], [r]),
                          terminal_residual=ca.Function("rN", [x], [r_end]),
@@ -366,7 +317,7 @@ class SwingUpMPC(DiscreteInputMPC):
 
     def _before_build(self):
         """The track guard and the balancer(s), from the model's step (DiscreteInputMPC hook)."""
-        guard, balance, kind, balance_options, track_margin = self._parts
+        guard, balance, kind, balance_options, track_margin, handover = self._parts
         del self._parts
         ic, ip = self.cart_index, self.pole_index
         self.guard = None
@@ -394,11 +345,22 @@ class SwingUpMPC(DiscreteInputMPC):
                 self.balancer = self._escalation[0]
         if kind is not None:
             self.balancer = build(kind)
+        # where the swing-up hands over (module upright): off-centre where pushes alternate
+        sequence = isinstance(self.balancer, SequenceBalancer)
+        if handover is None:
+            handover = self.HANDOVER_OFFSET if sequence and not self.balancer.turnaround else 0
+        self.handover = check_real("handover", handover, nonnegative=True)
+        if self.handover and not sequence:
+            raise ValueError("handover needs the sequence balancer (balance={'method': "
+                             "'sequence'}): the side comes from its linearisation.")
+        if not self.handover < self.track_limit - track_margin:
+            raise ValueError(f"handover must be in [0, track_limit - track_margin), got "
+                             f"{handover!r}.")
 
     def kick(self):
         """The model's pole-rate change (rad/s) over one period of the largest force, from rest
         at the upright (first order: ``F dt / (m_c L)``), from the linearised discrete step."""
-        return _step_kick(self.step_function, self.cart_index, self.pole_index, self.upright,
+        return step_kick(self.step_function, self.cart_index, self.pole_index, self.upright,
                           self.levels)
 
     def reset(self):
@@ -410,6 +372,8 @@ class SwingUpMPC(DiscreteInputMPC):
             self._escalation[1].reset()
         if getattr(self, "balancer", None) is not None:
             self.balancer.reset()
+        self.handover_side = None  # decided at the next step (handover)
+        self.reference[self.cart_index] = 0.0
 
     def _escalate(self):
         """With ``balance=True`` and the pulse balancer chosen from the model's kick: switch to
@@ -442,7 +406,11 @@ class SwingUpMPC(DiscreteInputMPC):
         return super()._applied(x, index, t_start, c_start, kind)
 
     def _own_level(self, x):
-        """The balancer's level near the upright (None elsewhere or without a balancer)."""
+        """The balancer's level near the upright (None elsewhere or without a balancer);
+        at an episode's first step, the hand-over's side (``handover``)."""
+        if self.handover and self.handover_side is None:
+            self.handover_side = handover_side(self.balancer, x)
+            self.reference[self.cart_index] = self.handover_side * self.handover
         if self.balancer is None:
             return None
         if self._escalation is not None:

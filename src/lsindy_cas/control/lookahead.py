@@ -55,7 +55,8 @@ def build_lookahead(ocp, depth, extra_penalty=None, bound_weight=1e5):
         ``f``): ``(x0 (n_state,), X (n_state, N) planned x_1..x_N, U (1, N) planned inputs,
         free (1, N) 1 where the planned input is strictly inside the level range,
         gain (n_state,), bias (n_state,) an online correction of the enumerated steps:
-        ``x+ = F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``) -> cost (n_levels**depth,)``;
+        ``x+ = F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``, ref (n_state,) the state the
+        costs are measured from) -> cost (n_levels**depth,)``;
         sequence ``j`` starts with level ``j // n_levels**(depth - 1)``.
     """
     step, n_state, levels, horizon = ocp.step, ocp.n_state, ocp.levels, ocp.horizon
@@ -81,12 +82,13 @@ def build_lookahead(ocp, depth, extra_penalty=None, bound_weight=1e5):
     X = ca.SX.sym("X", n_state, horizon)
     U = ca.SX.sym("U", 1, horizon)
     free = ca.SX.sym("free", 1, horizon)
-    _, s, P = term(X[:, horizon - 1])
+    ref = ca.SX.sym("ref", n_state)  # the costs are those of x - ref
+    _, s, P = term(X[:, horizon - 1] - ref)
     # interval k maps x_k -> x_{k+1}; X[:, k-1] is x_k for k >= 1
     for k in range(horizon - 1, depth - 1, -1):
         xk = X[:, k - 1]
         _, Ak, Bk = lin(xk, U[k])
-        _, q, Q = stage(xk)
+        _, q, Q = stage(xk - ref)
         q, Q = dt * q, dt * Q
         r_lin = 2 * dt * input_weight * U[k] / scale**2
         PA, PB = ca.mtimes(P, Ak), ca.mtimes(P, Bk)
@@ -116,7 +118,7 @@ def build_lookahead(ocp, depth, extra_penalty=None, bound_weight=1e5):
     for _ in range(depth):
         new_frontier, new_costs = [], []
         for x, c in zip(frontier, costs):
-            lx = stage(x)[0]
+            lx = stage(x - ref)[0]
             x_zero = lin(x, 0.0)[0]
             for level in levels:
                 xn = lin(x, level)[0]
@@ -130,6 +132,7 @@ def build_lookahead(ocp, depth, extra_penalty=None, bound_weight=1e5):
     for x, c in zip(frontier, costs):
         d = x - x_ref
         leaf.append(c + ca.dot(s, d) + 0.5 * ca.bilin(P, d, d))
-    return NumericFunction(ca.Function("lookahead", [x0, X, U, free, gain, bias],
+    return NumericFunction(ca.Function("lookahead", [x0, X, U, free, gain, bias, ref],
                                        [ca.vertcat(*leaf)],
-                                       ["x0", "X", "U", "free", "gain", "bias"], ["cost"]))
+                                       ["x0", "X", "U", "free", "gain", "bias", "ref"],
+                                       ["cost"]))

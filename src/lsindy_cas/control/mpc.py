@@ -48,8 +48,8 @@ class DiscreteInputMPC:
     input_index : int
         Which entry of ``u`` is actuated.
     stage_residual, terminal_residual : casadi.Function
-        ``x -> r`` (least-squares costs); the objective is
-        ``sum_k dt * (|r(x_k)|^2 + input penalty) + |r_N(x_N)|^2``.
+        ``x -> r`` (least-squares costs); the objective is ``sum_k dt * (|r(x_k - ref)|^2 +
+        input penalty) + |r_N(x_N - ref)|^2`` with ``ref`` the :attr:`reference`.
     dt : float
         Control period in seconds (zero-order hold).
     horizon : int
@@ -157,6 +157,8 @@ class DiscreteInputMPC:
         The online correction (None when ``adapt=False``).
     stats : MPCStats
         Solve counts and times, accumulated over episodes.
+    reference : ndarray, shape (n_state,)
+        The state ``ref`` the costs are measured from (zeros); may be set between steps.
     """
 
     #: failed recoveries in a row after which only every so many steps recover (0: every one)
@@ -189,7 +191,7 @@ class DiscreteInputMPC:
         max_gain = check_real("adapt_max_gain", adapt_max_gain, nonnegative=True)
         self.levels, self.dt, self.horizon = ocp.levels, ocp.dt, ocp.horizon
         self.n_state, self.n_input, self.input_index = ocp.n_state, ocp.n_input, ocp.input_index
-        self.step_function = ocp.step
+        self.step_function, self.reference = ocp.step, np.zeros(ocp.n_state)
         max_iter = check_int("max_iter", max_iter, low=1)
         tol, jit = check_real("tol", tol, positive=True), check_choice("jit", jit, (False, True))
         if recover_after is None:
@@ -280,13 +282,12 @@ class DiscreteInputMPC:
         span = self.levels[-1] - self.levels[0]
         free = ((forces > self.levels[0] + 1e-3 * span)
                 & (forces < self.levels[-1] - 1e-3 * span)).astype(float)
-        # candidates for the first move: the levels adjacent to the relaxed first input
-        # (the dynamics are affine in it), or that level alone if it is (almost) one
+        # first move: the levels adjacent to the relaxed first input (or that level alone)
         w0 = weights_from_value(forces[0], self.levels)
         w0[w0 < 1e-2] = 0.0
         gain, bias = self._correction()
         cost = np.asarray(self._lookahead(x, states.T, forces[None, :], free[None, :],
-                                          gain, bias)).ravel()
+                                          gain, bias, self.reference)).ravel()
         first = np.repeat(w0 > 0, self.levels.size ** (self.depth - 1))
         cost = np.where(first, cost, np.inf)
         if not np.any(np.isfinite(cost)):
@@ -337,8 +338,7 @@ class DiscreteInputMPC:
         index = self._own_level(x)
         if index is not None and not self.solve_balanced:
             return self._balanced_step(x, index, t_start, c_start)
-        # robust solvers for a cold guess, and after failures (so that a run of failures
-        # cannot keep replaying an exhausted plan)
+        # robust solvers for a cold guess and after failures (not replaying an exhausted plan)
         f, b = self._failed - self.recover_after, self.RECOVERY_BACKOFF
         kind = ("cold" if self._warm is None else "recover"
                 if f >= 0 and (not b or f < b or (f - b) % b == b - 1) else "warm")
@@ -362,8 +362,7 @@ class DiscreteInputMPC:
         if outcome == "inexact":
             self.stats.n_inexact += 1
         ok = outcome == "converged" or (outcome == "inexact" and self.accept_inexact)
-        # an iterate worth continuing from: finite, its shooting gaps and bounds off by at
-        # most 1 (state units) -- not a diverged one
+        # an iterate worth continuing from: finite, gaps and bounds off by <= 1 (not diverged)
         finite = bool(status != "exception" and np.all(np.isfinite(z))
                       and np.all(np.isfinite(lam_g)) and np.all(np.isfinite(lam_x))
                       and self.nlp.last_violation <= 1.0)
@@ -409,7 +408,8 @@ class DiscreteInputMPC:
         raised, e.g. NaN in a function evaluation of a bad model)."""
         try:
             gain = self.correction.gain[self.plan_gain_index] if self.adapt_plan else 0.0
-            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, gain=gain),
+            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, gain=gain,
+                                    ref=self.reference),
                     self.nlp.last_status)
         except RuntimeError:
             return "failed", z0, lam_g0, lam_x0, -1, "exception"

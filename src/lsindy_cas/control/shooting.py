@@ -125,7 +125,9 @@ class MultipleShootingNLP:
         x_init = sym.sym("x0", n_state)
         # the online correction's input gain (0: the model as identified): u -> (1 + gain) u
         gain = sym.sym("gain")
-        p = ca.vertcat(x_init, gain)
+        # the state the costs are measured from (0: the residuals as given; e.g. a cart target)
+        ref = sym.sym("ref", n_state)
+        p = ca.vertcat(x_init, gain, ref)
         cs = [sym.sym(f"c{k}", n_c) for k in range(horizon)]
         # x_0 is given, so stage 0 has no slack: ss[k] softens the bounds of x_k, k >= 1
         ss = [sym.sym(f"s{k}", n_s if k > 0 else 0) for k in range(horizon)]
@@ -164,9 +166,10 @@ class MultipleShootingNLP:
                     stage_g.append(ca.sum1(c) - 1)
                     lbg.append(0.0)
                     ubg.append(0.0)
-                f += dt * (ca.sumsqr(stage_residual(xs[k])) + input_weight * penalty)
+                r_k = stage_residual(xs[k] - ref)
+                f += dt * (ca.sumsqr(r_k) + input_weight * penalty)
                 if k > 0:
-                    residuals.append(np.sqrt(dt) * stage_residual(xs[k]))
+                    residuals.append(np.sqrt(dt) * r_k)
                     stage_g += soft_bounds(xs[k], ss[k])
                 if relaxation == "continuous":
                     residuals.append(np.sqrt(dt * input_weight) * c[0] / scale)
@@ -174,8 +177,9 @@ class MultipleShootingNLP:
                     f += slack_weight * (ca.sum1(ss[k]) + ca.sumsqr(ss[k]))
                     residuals.append(np.sqrt(slack_weight) * ss[k])
             else:
-                f += ca.sumsqr(terminal_residual(xs[k]))
-                residuals.append(terminal_residual(xs[k]))
+                r_k = terminal_residual(xs[k] - ref)
+                f += ca.sumsqr(r_k)
+                residuals.append(r_k)
             g += stage_g
             rows.append(np.arange(first, len(lbg)))
         nlp = {"x": ca.vertcat(*z), "p": p, "f": f, "g": ca.vertcat(*g)}
@@ -299,7 +303,7 @@ class MultipleShootingNLP:
                 ls[cur] = lam_g[nxt[: cur.size]]
         return zs, ls
 
-    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0):
+    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0, ref=None):
         """Solve from state ``x_init`` with a warm start.
 
         Parameters
@@ -312,6 +316,8 @@ class MultipleShootingNLP:
         gain : float
             Input-gain error of the model (the plan's dynamics apply ``(1 + gain) * u``; an
             online correction's estimate, 0 for the model as it is).
+        ref : ndarray, shape (n_state,), optional
+            The costs are those of ``x - ref`` (default zeros: the residuals as given).
 
         Returns
         -------
@@ -323,7 +329,7 @@ class MultipleShootingNLP:
         iters : int
         """
         solver = self.solvers[kind]
-        p = self.parameters(x_init, gain)  # the NLP parameters: state and gain
+        p = self.parameters(x_init, gain, ref)  # the NLP parameters: state, gain, ref
         if self._plugin[kind] == "fatrop" and not self._usable_guess(z0, p):
             self.last_status, self.last_violation = "unusable_guess", np.inf
             return "failed", z0, lam_g0, lam_x0, 0
@@ -376,9 +382,12 @@ class MultipleShootingNLP:
             lam_g = self._flip_gaps(lam_g)
         return outcome, z, lam_g, np.asarray(res["lam_x"]).ravel(), iters
 
-    def parameters(self, x_init, gain=0.0):
-        """The NLP's parameter vector: the initial state and the input-gain error."""
-        return np.append(np.asarray(x_init, dtype=float).ravel(), float(gain))
+    def parameters(self, x_init, gain=0.0, ref=None):
+        """The NLP's parameter vector: the initial state, the input-gain error and the state
+        the costs are measured from (``ref``, default zeros)."""
+        x_init = np.asarray(x_init, dtype=float).ravel()
+        ref = np.zeros(x_init.size) if ref is None else np.asarray(ref, dtype=float).ravel()
+        return np.concatenate([x_init, [float(gain)], ref])
 
     def _usable_guess(self, z, p):
         """Whether ``z`` is a guess fatrop can start from: the cost and constraints are finite

@@ -1,0 +1,107 @@
+"""The upright of a cart-pendulum model: its angle, one push's kick, and where to reach it.
+
+:func:`handover_side`: on a frictionless track only the cart force changes the horizontal
+momentum, by ``F dt`` per push, so the centre of mass's speed ``w = x_dot - k cos(theta -
+upright) theta_dot`` (``k = m_p l / (m_c + m_p)``, read off the model's upright linearisation
+as ``a_x / omega2``) changes only by multiples of ``dw = F dt / (m_c + m_p)``: its *phase*
+``(w / dw) mod 1`` is the start's for the whole episode, whatever the controller does.  Where
+the pole cannot turn around inside the success band
+(:attr:`~lsindy_cas.control.sequence_balancer.SequenceBalancer.turnaround` False) the balancing
+pushes must alternate, so ``w`` takes only two values, ``dw (n + phase)`` and ``dw (n + 1 +
+phase)``; the cart can stand still on average only if they straddle zero with shares of time
+the band allows (phase near 0.5).  From the other phases it creeps, one way more slowly than
+the other, and reversing it takes two pushes of one sign: a touch of the band.  Handing the
+pole over on the side the slow creep leaves from gives the cart the longest run before that
+(docs/history/control.md, stop 31).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from .mpc import wrap_angle
+
+__all__ = ["find_upright", "handover_side", "step_kick", "upright_kick"]
+
+
+def find_upright(ode, cart_index, pole_index, n_grid=720):
+    """Pole angle of the unstable rest equilibrium of a cart-pendulum ODE.
+
+    Scans the pole's angular acceleration at rest with zero input over one revolution;
+    equilibria are its zeros, and the upright one is where it increases with the angle
+    (a displacement accelerates away).  Works for any angle convention of the model.
+
+    Parameters
+    ----------
+    ode : casadi.Function
+        ``(x (4,), u (2,)) -> xdot (4,)``, state ``[q, q_dot]``.
+    cart_index, pole_index : int
+        Positions of the cart and pole coordinates in ``q``.
+    n_grid : int
+        Grid points per revolution.
+
+    Returns
+    -------
+    float
+        Upright angle in ``[-pi, pi)``, radians.
+
+    Raises
+    ------
+    ValueError
+        If there is not exactly one unstable rest equilibrium per revolution.
+    """
+    grid = np.linspace(-np.pi, np.pi, n_grid, endpoint=False)
+    x = np.zeros((4, n_grid))
+    x[pole_index] = grid
+    acc = np.asarray(ode.map(n_grid)(x, np.zeros((2, n_grid))))[2 + pole_index]
+    nxt = np.roll(acc, -1)
+    ups = np.flatnonzero((acc < 0) & (nxt >= 0))
+    if ups.size != 1 or not np.all(np.isfinite(acc)):
+        raise ValueError("could not determine the upright angle from the model (expected one "
+                         "unstable rest equilibrium of the pole); pass upright= explicitly.")
+    i = ups[0]
+    step = 2 * np.pi / n_grid
+    angle = grid[i] + step * acc[i] / (acc[i] - nxt[i])
+    return float(wrap_angle(angle))
+
+
+def step_kick(step, cart_index, pole_index, upright, levels):
+    """Pole-rate change (rad/s) over one period of the largest of ``levels``, from rest at the
+    upright, from the discrete step ``step(x, u)`` linearised there (:meth:`SwingUpMPC.kick`)."""
+    x0 = np.zeros(4)
+    x0[pole_index] = upright
+    u = ca.SX.sym("u", 2)
+    jac = ca.Function("kick", [u], [ca.jacobian(step(x0, u), u)])
+    b = np.asarray(jac(np.zeros(2)), dtype=float)[2 + pole_index, cart_index]
+    return float(abs(b) * np.max(np.abs(np.asarray(levels, dtype=float))))
+
+
+def upright_kick(ode, cart_index, pole_index, upright, dt, n_substeps, force_set):
+    """:meth:`SwingUpMPC.kick` before the controller exists (0.0 if the arguments are bad:
+    they are checked, with a clear error, when the controller is built)."""
+    from .ocp import rk4_step
+    try:
+        step = rk4_step(ode, 4, 2, float(dt), int(n_substeps))
+        return step_kick(step, cart_index, pole_index, upright, force_set)
+    except (TypeError, ValueError, RuntimeError):
+        return 0.0
+
+
+def handover_side(balancer, x, window=0.25):
+    """Side of the track (+1, -1) to hand the pole over on from state ``x``, or 0.
+
+    ``balancer``: a :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer` (its
+    upright linearisation, indices and levels).  0 where the phase of the centre of mass's speed
+    is within ``window`` of 0.5 (the cart can stand still); otherwise the side the slower of the
+    two creeps leaves from: +1 for phases below 0.5 (the slow creep is towards -x), -1 above.
+    """
+    ic, ip, A, B = balancer.ic, balancer.ip, balancer.Ac, balancer.B
+    x = np.asarray(x, dtype=float)
+    k = A[2 + ic, ip] / balancer.omega2
+    w = x[2 + ic] - k * np.cos(x[ip] - balancer.x_ref[ip]) * x[2 + ip]
+    dw = abs(B[2 + ic] - k * B[2 + ip]) * np.max(np.abs(balancer.levels))
+    phase = float((w / dw) % 1.0)
+    if abs(phase - 0.5) <= window:
+        return 0
+    return 1 if phase < 0.5 else -1

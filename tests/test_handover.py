@@ -1,0 +1,83 @@
+"""Where the swing-up hands the pole to the balancer on plants whose pushes must alternate."""
+
+import numpy as np
+import pytest
+
+from lsindy_cas import systems
+from lsindy_cas.control.upright import handover_side
+from lsindy_cas.mpc import SwingUpMPC
+from lsindy_cas.paper.swingup import Plant
+
+MC, MP, L = 0.5, 0.05, 1.2          # the family's light plant: turnaround False
+DW = 10.0 * 0.05 / (MC + MP)        # one push moves the centre of mass's speed by F dt / M
+
+
+@pytest.fixture(scope="module")
+def light():
+    system = systems.cart_pendulum(mc=MC, mp=MP, L=L)
+    return system, SwingUpMPC(system)
+
+
+def _state(phase, theta, theta_dot, x=0.3):
+    """A state whose centre-of-mass speed x_dot + m_p L cos(theta) theta_dot / M (hand-derived
+    for this model, upright at pi) is (2 + phase) * DW."""
+    x_dot = (2 + phase) * DW - MP * L * np.cos(theta) * theta_dot / (MC + MP)
+    return np.array([x, theta, x_dot, theta_dot])
+
+
+@pytest.mark.parametrize("phase, side", [(0.1, 1), (0.2, 1), (0.5, 0), (0.3, 0), (0.7, 0),
+                                         (0.8, -1), (0.95, -1)])
+@pytest.mark.parametrize("theta, theta_dot", [(0.0, 0.0), (0.0, 2.5), (2.0, -1.3),
+                                              (np.pi, 0.4)])
+def test_side_from_the_phase_of_the_centre_of_mass_speed(light, phase, side, theta, theta_dot):
+    """The phase read off the model's upright linearisation is the exact one at any pole angle
+    (hanging, swinging, upright): below 0.5 the slower creep is towards -x, so the hand-over is
+    on the +x side; within 0.25 of 0.5 the cart can stand still (0)."""
+    assert handover_side(light[1].balancer, _state(phase, theta, theta_dot)) == side
+
+
+def test_defaults_and_bad_values(light):
+    system, ctrl = light
+    assert not ctrl.balancer.turnaround and ctrl.handover == SwingUpMPC.HANDOVER_OFFSET
+    corner = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)        # pushes need not alternate
+    assert SwingUpMPC(corner).handover == 0.0
+    assert SwingUpMPC(systems.cart_pendulum()).handover == 0.0   # paper plant: pulse balancer
+    with pytest.raises(ValueError, match="handover"):
+        SwingUpMPC(system, handover=-0.1)
+    with pytest.raises(ValueError, match="handover"):
+        SwingUpMPC(system, handover=1.75)                        # track_limit - track_margin
+    with pytest.raises(ValueError, match="sequence balancer"):
+        SwingUpMPC(systems.cart_pendulum(), handover=0.5)
+    with pytest.raises(TypeError, match="handover"):
+        SwingUpMPC(system, handover="left")
+
+
+def test_reference_is_set_at_the_first_step_and_cleared_by_reset(light):
+    """The side is decided once per episode, at its first step, and the swing-up's costs are
+    then measured from the cart at +-handover; reset() returns to the centre."""
+    _, ctrl = light
+    ctrl.reset()
+    assert ctrl.handover_side is None and np.all(ctrl.reference == 0.0)
+    ctrl(_state(0.1, 0.0, 0.0))
+    assert ctrl.handover_side == 1
+    np.testing.assert_array_equal(ctrl.reference, [ctrl.handover, 0.0, 0.0, 0.0])
+    ctrl(_state(0.9, 0.0, 0.0))                  # later steps keep the episode's side
+    assert ctrl.handover_side == 1
+    ctrl.reset()
+    assert ctrl.handover_side is None and np.all(ctrl.reference == 0.0)
+    ctrl(_state(0.5, 0.0, 0.0))
+    assert ctrl.handover_side == 0 and np.all(ctrl.reference == 0.0)
+
+
+@pytest.mark.slow
+def test_off_centre_hand_over_keeps_a_creeping_cart_off_the_track_edge(light):
+    """Start 17 of the family benchmark (phase 0.2): handed over at the centre the cart creeps
+    to the track's margin and the reversal there touches the band in the last 3 s; handed over
+    at +0.6 m it creeps the other way through the episode (measured, stop 31)."""
+    from lsindy_cas.paper.swingup import random_starts, run_episode
+    system, ctrl = light
+    x0 = random_starts(60, 0)[17]
+    assert handover_side(ctrl.balancer, x0) == 1
+    assert run_episode(ctrl, Plant(system, 0.05), x0).success
+    centre = SwingUpMPC(system, handover=0.0)
+    assert not run_episode(centre, Plant(system, 0.05), x0).success
