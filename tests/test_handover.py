@@ -39,8 +39,15 @@ def test_side_from_the_phase_of_the_centre_of_mass_speed(light, phase, side, the
 def test_defaults_and_bad_values(light):
     system, ctrl = light
     assert not ctrl.balancer.turnaround and ctrl.handover == SwingUpMPC.HANDOVER_OFFSET
-    corner = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)        # pushes need not alternate
-    assert SwingUpMPC(corner).handover == 0.0
+    b = ctrl.balancer   # the lean at which gravity turns a rate kick - 0.5 round: 0.113 rad
+    assert b.turn_lean == pytest.approx((b.kick - 0.5) / np.sqrt(b.omega2), rel=1e-12)
+    assert b.turn_lean == pytest.approx((10 * 0.05 / (MC * L) - 0.5) / 3.0, rel=0.03)
+    # 0.8/0.2/0.7 turns round at 0.095 rad, inside the success band but beyond the balancer's
+    # 0.08: off-centre too; 1.0/0.5/0.6 at 0.069 rad: at the centre
+    corner = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
+    assert SwingUpMPC(corner).handover == SwingUpMPC.HANDOVER_OFFSET
+    assert SwingUpMPC(corner, balance={"method": "pulse"}).handover == 0.0
+    assert SwingUpMPC(systems.cart_pendulum(mc=1.0, mp=0.5, L=0.6)).handover == 0.0
     assert SwingUpMPC(systems.cart_pendulum()).handover == 0.0   # paper plant: pulse balancer
     with pytest.raises(ValueError, match="handover"):
         SwingUpMPC(system, handover=-0.1)

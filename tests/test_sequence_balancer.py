@@ -169,16 +169,16 @@ def test_cart_speed_term_is_the_centre_of_mass_speed(light, corner):
 def test_cart_speed_term_keeps_the_light_cart_on_the_track(light):
     """Start 11 of the family benchmark on 0.5/0.05/1.2 (exact model): without the term the
     cart creeps to the track's margin and the pole leaves the band in the last 3 s; with it
-    the episode succeeds (measured with the 16-interval horizon and without the escape term,
-    as in stop 26, kept here; with stop 30's 28 this start fails either way, and with the
-    escape term of stop 31 it succeeds either way)."""
+    the episode succeeds (measured with the 16-interval horizon, without the escape term and
+    handing over at the centre, as in stop 26, kept here; with stop 30's 28 this start fails
+    either way, and with the escape term of stop 31 it succeeds either way)."""
     from lsindy_cas.paper.swingup import random_starts, run_episode
     system, _ = light
     x0 = random_starts(20, 0)[11]
     stop26 = {"method": "sequence", "horizon": 16, "escape_weight": 0.0}
-    on = SwingUpMPC(system, balance=stop26)
+    on = SwingUpMPC(system, balance=stop26, handover=0.0)
     assert run_episode(on, Plant(system, 0.05), x0).success
-    off = SwingUpMPC(system, balance=dict(stop26, speed_weight=0.0))
+    off = SwingUpMPC(system, balance=dict(stop26, speed_weight=0.0), handover=0.0)
     assert not run_episode(off, Plant(system, 0.05), x0).success
 
 

@@ -155,12 +155,12 @@ class SwingUpMPC(DiscreteInputMPC):
         ``stats.n_guard``); a dict passes ``margin``, ``factor``, ``horizon`` to it.  ``False`` is the behaviour before issue 16 (the cart
         ran to 10.5 m on a plant that cannot be balanced).
     handover : float, optional
-        Distance (m) from the track's centre at which the swing-up is to hand the pole to a
-        sequence balancer whose pushes must alternate (its ``turnaround`` False), on the side
-        the cart's slower creep leaves from (:func:`~lsindy_cas.control.upright.handover_side`,
-        decided at the first step after :meth:`reset`; the swing-up's costs are measured from
-        there, :attr:`reference`).  None: :attr:`HANDOVER_OFFSET` on such plants, else 0 (the
-        centre).
+        Distance (m) from the track's centre at which the swing-up is to hand the pole to the
+        sequence balancer, on the side the cart's slower creep leaves from
+        (:func:`~lsindy_cas.control.upright.handover_side`, decided at the first step after
+        :meth:`reset`; the swing-up's costs are measured from there, :attr:`reference`).
+        None: :attr:`HANDOVER_OFFSET` where gravity turns the pole round only beyond the
+        balancer's angle band (its ``turn_lean > angle_band``), else 0 (the centre).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -204,8 +204,8 @@ class SwingUpMPC(DiscreteInputMPC):
     TOP_RATE_KICKS = 3.0
     #: default warm SQP cap where the sequence balancer is chosen (elsewhere 7)
     SEQUENCE_MAX_ITER = 10
-    #: default ``handover`` (m) where the balancing pushes must alternate (0.5/0.05/1.2, 60
-    #: starts, exact model: 32 -> 44 nominal; 1.0 m: 42; docs/history/control.md, stop 31)
+    #: default ``handover`` (m) where the pole turns round only beyond the balancer's angle
+    #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md, stop 31)
     HANDOVER_OFFSET = 0.6
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
@@ -348,7 +348,8 @@ class SwingUpMPC(DiscreteInputMPC):
         # where the swing-up hands over (module upright): off-centre where pushes alternate
         sequence = isinstance(self.balancer, SequenceBalancer)
         if handover is None:
-            handover = self.HANDOVER_OFFSET if sequence and not self.balancer.turnaround else 0
+            hard = sequence and self.balancer.turn_lean > self.balancer.angle_band
+            handover = self.HANDOVER_OFFSET if hard else 0
         self.handover = check_real("handover", handover, nonnegative=True)
         if self.handover and not sequence:
             raise ValueError("handover needs the sequence balancer (balance={'method': "

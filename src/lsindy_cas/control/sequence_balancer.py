@@ -153,7 +153,8 @@ class SequenceBalancer(PulseBalancer):
     kick : float
         The model's pole-rate change (rad/s) over one push of the largest force at the upright.
     turnaround : bool
-        Whether gravity can reverse the pole's rate inside the success band between pushes.
+        Whether gravity can reverse the pole's rate inside the success band between pushes:
+        ``turn_lean``, the lean that turns a rate ``kick - 0.5`` round, is at most 0.1 rad.
     kernel : ViabilityKernel or None
         The pole's viability kernel the last plan used (``kernels``: all, by gain factor).
     proven : bool
@@ -189,7 +190,6 @@ class SequenceBalancer(PulseBalancer):
         if "max_pushes" in options:
             raise ValueError("max_pushes is an option of the pulse balancer; the sequence "
                              "balancer plans over all sequences.")
-        # the parent: linearisation, kappa, unstable mode, hand-over (its enumeration unused)
         super().__init__(step, ode, levels, cart_index=cart_index, pole_index=pole_index,
                          upright=upright, track_limit=track_limit, dt=dt, horizon=horizon,
                          max_pushes=1, rate_band=0.42 if rate_band is None else rate_band,
@@ -209,7 +209,8 @@ class SequenceBalancer(PulseBalancer):
         self.plan_seconds = []
         # the pole alone: phi'' = omega2 phi, E = theta_dot^2 - omega2 phi^2 kept between pushes
         self.omega2 = float(self.Ac[2 + self.ip, self.ip])
-        self.turnaround = bool(np.sqrt(max(self.omega2, 0.0)) * BAND[0] >= self.kick - BAND[1])
+        self.turn_lean = (self.kick - BAND[1]) / np.sqrt(max(self.omega2, 1e-12))
+        self.turnaround = bool(self.turn_lean <= BAND[0])
         if escape_weight is None:
             escape_weight = 0.0 if self.turnaround else self.ESCAPE_WEIGHT
         self.escape_weight = check_real("escape_weight", escape_weight, nonnegative=True)
@@ -218,7 +219,6 @@ class SequenceBalancer(PulseBalancer):
         self.ratio = float(self.B[2 + self.ic] / self.B[2 + self.ip])
         self._lean_dt = self.lean_weight * self.dt
         self._comps = [self.ip, 2 + self.ip, self.ic]
-        # quadratic stage cost; its infinite-horizon value (DARE) is the terminal cost
         from scipy.linalg import solve_discrete_are
         w = np.asarray(state_weights, dtype=float)
         Q = np.zeros((4, 4))

@@ -11,7 +11,9 @@ pushes must alternate, so ``w`` takes only two values, ``dw (n + phase)`` and ``
 phase)``; the cart can stand still on average only if they straddle zero with shares of time
 the band allows (phase near 0.5).  From the other phases it creeps, one way more slowly than
 the other, and reversing it takes two pushes of one sign: a touch of the band.  Handing the
-pole over on the side the slow creep leaves from gives the cart the longest run before that
+pole over on the side the slow creep leaves from gives the cart the longest run before that.
+Where gravity can turn the pole round only near the band's edge (the other family plants with
+the sequence balancer, kicks 0.67-0.89 rad/s) the same side measured better too
 (docs/history/control.md, stop 31).
 """
 
