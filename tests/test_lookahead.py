@@ -38,6 +38,15 @@ def _stage(ocp, x, u):
     return DT * (r @ r + W * (u / ocp.scale) ** 2)
 
 
+def _rollout(ocp, x0, plan_u):
+    """States x_1..x_N (n_state, N) of the plan's inputs from x0."""
+    X, xk = [], x0
+    for u in plan_u:
+        xk = _step(ocp, xk, u)
+        X.append(xk)
+    return np.array(X).T
+
+
 def _tail_cost(ocp, x):
     """Optimal cost over intervals DEPTH..N-1 from x with unbounded continuous inputs: the
     residual vector is affine in the inputs, so evaluate it at 0 and unit inputs and solve."""
@@ -64,11 +73,7 @@ def test_lookahead_costs_equal_brute_force_up_to_a_constant(ocp, gain, bias):
     x0 = np.array([0.2, -0.4])
     # a dynamically consistent, unsaturated relaxed plan (what the NLP would hand over)
     plan_u = np.array([0.4, -0.3, 0.2, 0.5, -0.1])
-    X, xk = [], x0
-    for u in plan_u:
-        xk = _step(ocp, xk, u)
-        X.append(xk)
-    X = np.array(X).T
+    X = _rollout(ocp, x0, plan_u)
     look = build_lookahead(ocp, DEPTH)
     cost = np.asarray(look(x0, X, plan_u[None, :], np.ones((1, N)), np.broadcast_to(gain, 2),
                            np.broadcast_to(bias, 2), np.zeros(2))).ravel()
@@ -101,11 +106,7 @@ def test_reference_moves_the_costs(ocp):
     plan moved by ``-ref`` and no reference; and the reference changes the scores."""
     x0, ref = np.array([0.2, -0.4]), np.array([0.7, 0.0])
     plan_u = np.array([0.4, -0.3, 0.2, 0.5, -0.1])
-    X, xk = [], x0
-    for u in plan_u:
-        xk = _step(ocp, xk, u)
-        X.append(xk)
-    X = np.array(X).T
+    X = _rollout(ocp, x0, plan_u)
     look = build_lookahead(ocp, DEPTH)
     args = (plan_u[None, :], np.ones((1, N)), np.zeros(2), np.zeros(2))
     with_ref = np.asarray(look(x0, X, *args, ref)).ravel()
