@@ -48,7 +48,11 @@ def test_defaults_and_bad_values(light):
     assert SwingUpMPC(corner).handover == SwingUpMPC.HANDOVER_OFFSET
     assert SwingUpMPC(corner, balance={"method": "pulse"}).handover == 0.0
     assert SwingUpMPC(systems.cart_pendulum(mc=1.0, mp=0.5, L=0.6)).handover == 0.0
-    assert SwingUpMPC(systems.cart_pendulum()).handover == 0.0   # paper plant: pulse balancer
+    paper = SwingUpMPC(systems.cart_pendulum())
+    assert paper.handover == 0.0                                  # paper plant: pulse balancer
+    paper.reference[0] = 0.3                                     # a target the user set ...
+    paper.reset()
+    assert paper.reference[0] == 0.3                             # ... survives reset()
     with pytest.raises(ValueError, match="handover"):
         SwingUpMPC(system, handover=-0.1)
     with pytest.raises(ValueError, match="handover"):

@@ -345,7 +345,8 @@ class SwingUpMPC(DiscreteInputMPC):
                 self.balancer = self._escalation[0]
         if kind is not None:
             self.balancer = build(kind)
-        # where the swing-up hands over (module upright): off-centre where pushes alternate
+        # where the swing-up hands over (module upright): off-centre where the pole turns
+        # round only beyond the balancer's angle band
         sequence = isinstance(self.balancer, SequenceBalancer)
         if handover is None:
             hard = sequence and self.balancer.turn_lean > self.balancer.angle_band
@@ -374,7 +375,8 @@ class SwingUpMPC(DiscreteInputMPC):
         if getattr(self, "balancer", None) is not None:
             self.balancer.reset()
         self.handover_side = None  # decided at the next step (handover)
-        self.reference[self.cart_index] = 0.0
+        if self.handover:  # otherwise a reference the user set stays
+            self.reference[self.cart_index] = 0.0
 
     def _escalate(self):
         """With ``balance=True`` and the pulse balancer chosen from the model's kick: switch to
