@@ -12,9 +12,9 @@ phase)``; the cart can stand still on average only if they straddle zero with sh
 the band allows (phase near 0.5).  From the other phases it creeps, one way more slowly than
 the other, and reversing it takes two pushes of one sign: a touch of the band.  Handing the
 pole over on the side the slow creep leaves from gives the cart the longest run before that.
-Where gravity can turn the pole round only near the band's edge (the other family plants with
-the sequence balancer, kicks 0.67-0.89 rad/s) the same side measured better too
-(docs/history/control.md, stop 31).
+Where gravity turns the pole round inside the band but only beyond the balancer's 0.08 rad angle
+band (the family's 0.8/0.2/0.7, 0.6/0.2/1.0 and 0.7/0.4/0.8) the same side measured better too;
+below that lean it did not (docs/history/control.md, stop 31).
 """
 
 from __future__ import annotations
