@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from lsindy_cas import systems
+from lsindy_cas.control.upright import com_speed_step
 from lsindy_cas.control.viability import upright_jacobians
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant, evaluate, identify_cart_pendulum, random_starts
@@ -49,8 +50,7 @@ DT, FORCE = 0.05, 10.0
 def invariant(ode):
     """``(a_x / omega2, dw)`` of a cart-pendulum ODE (cart first, pole angle pi upright)."""
     A, B = upright_jacobians(ode, 1, np.pi)
-    a_x, omega2, b_x, b_p = A[2, 1], A[3, 1], B[2, 0], B[3, 0]
-    return a_x / omega2, abs(b_x - a_x * b_p / omega2) * FORCE * DT
+    return com_speed_step(A, B[:, 0] * DT, 0, 1, FORCE)
 
 
 def least_slow_speed(ode, n, v0=0.5, rate=0.44, angle_band=0.095, rate_band=0.47,

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas.control.upright import handover_side
+from lsindy_cas.control.upright import com_speed_step, handover_side
+from lsindy_cas.control.viability import upright_jacobians
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant
 
@@ -34,6 +35,16 @@ def test_side_from_the_phase_of_the_centre_of_mass_speed(light, phase, side, the
     (hanging, swinging, upright): below 0.5 the slower creep is towards -x, so the hand-over is
     on the +x side; within 0.25 of 0.5 the cart can stand still (0)."""
     assert handover_side(light[1].balancer, _state(phase, theta, theta_dot)) == side
+
+
+@pytest.mark.parametrize("mc, mp, length", [(MC, MP, L), (1.0, 0.1, 1.0), (2.0, 0.5, 1.5)])
+def test_centre_of_mass_speed_coefficients_are_the_hand_derived_ones(mc, mp, length):
+    """Point-mass pole, upright at pi: x_com_dot = x_dot + m_p L cos(theta) theta_dot / M, so
+    k = m_p L / M, and only the force moves it: one push changes it by F dt / M."""
+    A, B = upright_jacobians(systems.cart_pendulum(mc=mc, mp=mp, L=length).ode(), 1, np.pi)
+    k, dw = com_speed_step(A, B[:, 0] * 0.05, 0, 1, 10.0)
+    assert k == pytest.approx(mp * length / (mc + mp), rel=1e-9)
+    assert dw == pytest.approx(10.0 * 0.05 / (mc + mp), rel=1e-9)
 
 
 def test_defaults_and_bad_values(light):

@@ -24,7 +24,7 @@ import numpy as np
 
 from .mpc import wrap_angle
 
-__all__ = ["find_upright", "handover_side", "step_kick", "upright_kick"]
+__all__ = ["com_speed_step", "find_upright", "handover_side", "step_kick", "upright_kick"]
 
 
 def find_upright(ode, cart_index, pole_index, n_grid=720):
@@ -90,6 +90,20 @@ def upright_kick(ode, cart_index, pole_index, upright, dt, n_substeps, force_set
         return 0.0
 
 
+def com_speed_step(A, b, cart_index, pole_index, force):
+    """``(k, dw)`` of the centre of mass's speed ``w = x_dot - k cos(theta - upright) theta_dot``
+    (module docstring), read off a cart-pendulum's upright linearisation.
+
+    ``A``: the continuous Jacobian in the state ``[q, q_dot]``; ``k = a_x / omega2`` (``m_p l /
+    (m_c + m_p)`` for a point-mass pole).  ``b``: the cart force's effect on the state over one
+    period (the discrete step's input column, or the continuous one times ``dt``); ``dw`` is the
+    change of ``w`` by one push of ``force``."""
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(b, dtype=float).reshape(-1)
+    k = A[2 + cart_index, pole_index] / A[2 + pole_index, pole_index]
+    return k, abs(b[2 + cart_index] - k * b[2 + pole_index]) * force
+
+
 def handover_side(balancer, x, window=0.25):
     """Side of the track (+1, -1) to hand the pole over on from state ``x``, or 0.
 
@@ -98,11 +112,10 @@ def handover_side(balancer, x, window=0.25):
     is within ``window`` of 0.5 (the cart can stand still); otherwise the side the slower of the
     two creeps leaves from: +1 for phases below 0.5 (the slow creep is towards -x), -1 above.
     """
-    ic, ip, A, B = balancer.ic, balancer.ip, balancer.Ac, balancer.B
+    ic, ip = balancer.ic, balancer.ip
     x = np.asarray(x, dtype=float)
-    k = A[2 + ic, ip] / balancer.omega2
+    k, dw = com_speed_step(balancer.Ac, balancer.B, ic, ip, np.max(np.abs(balancer.levels)))
     w = x[2 + ic] - k * np.cos(x[ip] - balancer.x_ref[ip]) * x[2 + ip]
-    dw = abs(B[2 + ic] - k * B[2 + ip]) * np.max(np.abs(balancer.levels))
     phase = float((w / dw) % 1.0)
     if abs(phase - 0.5) <= window:
         return 0
