@@ -113,8 +113,24 @@ def episode(ctrl, plant, x0, coef, t_end=10.0):
         states.append(fine)
         x = fine[-1]
     X = np.vstack(states)  # success judged on every fine sample (between the periods too)
-    ok, t_up, used = evaluate(np.arange(len(X)) * DT / plant.n_out, X, t_end=t_end)
-    return ok, t_up, used, hand, np.array(ws)
+    t = np.arange(len(X)) * DT / plant.n_out
+    ok, t_up, used = evaluate(t, X, t_end=t_end)
+    return ok, t_up, used, hand, np.array(ws), t, X
+
+
+def window_success(t, X, ends):
+    """Success (the issue's criterion: in the band over the last 3 s, on the track throughout)
+    of the same run cut at each of ``ends`` (s)."""
+    return [bool(evaluate(t[t <= end + 1e-9], X[t <= end + 1e-9], t_end=end)[0]) for end in ends]
+
+
+def band_exits(t, X, t_from):
+    """Times (s) after ``t_from`` at which the pole leaves the success band."""
+    from lsindy_cas.paper.swingup import ANGLE_TOL, RATE_TOL
+    from lsindy_cas.control.mpc import wrap_angle
+    good = (np.abs(wrap_angle(X[:, 1] - np.pi)) < ANGLE_TOL) & (np.abs(X[:, 3]) < RATE_TOL)
+    leave = np.flatnonzero(good[:-1] & ~good[1:]) + 1
+    return [float(v) for v in t[leave] if v > t_from]
 
 
 def main(argv=None):
@@ -123,6 +139,9 @@ def main(argv=None):
     ap.add_argument("--plant", default="0.5/0.05/1.2", help="m_c/m_p/L (default 0.5/0.05/1.2)")
     ap.add_argument("--starts", type=int, default=20, help="random starts (default 20)")
     ap.add_argument("--model", choices=("exact", "identified"), default="exact")
+    ap.add_argument("--seconds", type=float, default=10.0,
+                    help="episode length (s, default 10); success is also reported for the same "
+                         "runs cut at every multiple of 10 s up to it (balancing longer)")
     ap.add_argument("--milp", default="",
                     help="comma-separated horizons (periods) of the exhaustive slow-speed check "
                          "(e.g. 20,30; 30 takes ~1.5 min); none by default")
@@ -141,6 +160,9 @@ def main(argv=None):
         ap.error(f"--plant masses and length must be positive, got {args.plant!r}")
     if args.starts < 1:
         ap.error("--starts must be >= 1")
+    if not (np.isfinite(args.seconds) and args.seconds >= 10.0):
+        ap.error(f"--seconds must be >= 10, got {args.seconds}")
+    ends = [10.0 * k for k in range(1, int(args.seconds // 10) + 1)]
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -153,7 +175,8 @@ def main(argv=None):
     ctrl = SwingUpMPC(model, dt=DT)
     rows = []
     for i, x0 in enumerate(random_starts(args.starts, 0)):
-        ok, t_up, used, hand, ws = episode(ctrl, Plant(system, DT), x0, coef)
+        ok, t_up, used, hand, ws, t, X = episode(ctrl, Plant(system, DT), x0, coef,
+                                                 t_end=args.seconds)
         levels, counts = (np.unique(np.round(ws, 2), return_counts=True) if ws.size
                           else (np.array([]), np.array([], dtype=int)))
         top2 = float(np.sort(counts)[-2:].sum() / counts.sum()) if counts.size else None
@@ -164,7 +187,10 @@ def main(argv=None):
                "handover_w": None if hand is None else float(hand[1]),
                "phase": None if hand is None else float((hand[1] / dw) % 1.0),
                "w_levels": levels.tolist()[:8], "n_w_levels": int(levels.size),
-               "share_two_levels": top2}
+               "share_two_levels": top2,
+               "window_success": dict(zip([f"{e:g}" for e in ends], window_success(t, X, ends))),
+               "band_exits_after_handover": ([] if hand is None
+                                             else band_exits(t, X, hand[0] + 0.5))}
         rows.append(row)
         print(f"start {i:2d}: {'success' if ok else 'FAILED '}  hand-over "
               + ("-" if hand is None else f"t={hand[0]:.2f} s w={hand[1]:+.3f} m/s "
@@ -176,7 +202,9 @@ def main(argv=None):
     rest = [r for r in rows if r not in near0 and r not in mid]
     frac = (lambda rs: f"{sum(r['success'] for r in rs)}/{len(rs)}")
     lines = [f"`python benchmarks/bench_cart_phase.py --out DIR --plant {args.plant} --starts "
-             f"{args.starts} --model {args.model}` ({time.perf_counter() - t0:.0f} s). "
+             f"{args.starts} --model {args.model}"
+             + (f" --seconds {args.seconds:g}" if len(ends) > 1 else "")
+             + f"` ({time.perf_counter() - t0:.0f} s). "
              f"w = x_dot - ({coef:.4f}) theta_dot; one push moves w by dw = {dw:.3f} m/s.", "",
              "| hand-over phase (w / dw mod 1) | success |", "|---|---|",
              f"| within 0.1 of 0 (one cart speed ~0) | {frac(near0)} |",
@@ -187,6 +215,32 @@ def main(argv=None):
              "the linear range): " + ", ".join(
                  "-" if r["share_two_levels"] is None else f"{100 * r['share_two_levels']:.0f} %"
                  for r in rows) + "."]
+    if len(ends) > 1:
+        # the pole kept in the success band needs >= 24 % of the time on either level of w
+        # (stop 27), in the balancer's own bands >= 42 % (stop 30): within that share of an
+        # integer the phase forces the cart to creep; and where the pole turns round only
+        # beyond the success band (turn_lean > 0.1 rad) every reversal of a creep leaves it
+        dist = lambda r: min(r["start_phase"], 1 - r["start_phase"])  # noqa: E731
+        groups = [("within 0.24 of an integer (creep forced in the success band)",
+                   [r for r in rows if dist(r) < 0.24]),
+                  ("0.24-0.42 from an integer (creep forced in the balancer's bands)",
+                   [r for r in rows if 0.24 <= dist(r) < 0.42]),
+                  ("within 0.08 of 0.5 (the cart can stand)",
+                   [r for r in rows if dist(r) >= 0.42])]
+        lines += ["", "The same runs cut at " + ", ".join(f"{e:g}" for e in ends) + " s (success "
+                  "= the issue's criterion over the last 3 s before the cut), and the pole's "
+                  "exits from the success band from 0.5 s after the hand-over to "
+                  f"{args.seconds:g} s:", "",
+                  "| start phase | starts | " + " | ".join(f"success at {e:g} s" for e in ends)
+                  + " | band exits per start (median, max) |",
+                  "|---|---|" + "---|" * len(ends) + "---|"]
+        for label, rs in groups:
+            if not rs:
+                continue
+            n_exit = [len(r["band_exits_after_handover"]) for r in rs]
+            lines.append(f"| {label} | {len(rs)} | " + " | ".join(
+                f"{sum(r['window_success'][f'{e:g}'] for r in rs)}/{len(rs)}" for e in ends)
+                + f" | {np.median(n_exit):g}, {max(n_exit)} |")
     gaps = [abs((r["phase"] - r["start_phase"] + 0.5) % 1.0 - 0.5) for r in rows
             if r["phase"] is not None]
     if gaps:
@@ -203,7 +257,8 @@ def main(argv=None):
                      + f", {secs:.1f} s).")
     (out / "cart_phase.md").write_text("\n".join(lines) + "\n")
     (out / "cart_phase.json").write_text(json.dumps(
-        {"plant": [mc, mp, L], "model": args.model, "coef": coef, "dw": dw, "episodes": rows,
+        {"plant": [mc, mp, L], "model": args.model, "seconds": args.seconds, "coef": coef,
+         "dw": dw, "episodes": rows,
          "milp": checks}, indent=1))
     print("\n".join(lines))
     print(f"written: {out / 'cart_phase.md'} and cart_phase.json")
