@@ -105,3 +105,23 @@ def _function_cache(tmp_path_factory):
         os.environ.pop("LSINDY_CACHE_DIR", None)
     else:
         os.environ["LSINDY_CACHE_DIR"] = old
+
+
+@pytest.fixture(scope="session")
+def shared_mpc():
+    """``shared_mpc(plant, **options)``: ``SwingUpMPC(systems.cart_pendulum(**plant), **options)``
+    built once per test process and configuration (a build is ~1.3 s: NLP solvers, lookahead,
+    balancers), for tests that only READ a controller's defaults (weights, nlp.max_iters,
+    ocp.stage_residual, kick(), balancer, handover).  Never step, reset or modify one: a test
+    that does builds its own controller."""
+    from lsindy_cas.mpc import SwingUpMPC
+    built = {}
+
+    def get(plant=None, **options):
+        plant = dict(plant or {})
+        key = (repr(sorted(plant.items())), repr(sorted(options.items())))
+        if key not in built:
+            built[key] = SwingUpMPC(systems.cart_pendulum(**plant), **options)
+        return built[key]
+
+    return get

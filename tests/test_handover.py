@@ -36,7 +36,7 @@ def test_side_from_the_phase_of_the_centre_of_mass_speed(light, phase, side, the
     assert handover_side(light[1].balancer, _state(phase, theta, theta_dot)) == side
 
 
-def test_defaults_and_bad_values(light):
+def test_defaults_and_bad_values(light, shared_mpc):
     system, ctrl = light
     assert not ctrl.balancer.turnaround and ctrl.handover == SwingUpMPC.HANDOVER_OFFSET
     b = ctrl.balancer   # the lean at which gravity turns a rate kick - 0.5 round: 0.113 rad
@@ -44,10 +44,11 @@ def test_defaults_and_bad_values(light):
     assert b.turn_lean == pytest.approx((10 * 0.05 / (MC * L) - 0.5) / 3.0, rel=0.03)
     # 0.8/0.2/0.7 turns round at 0.095 rad, inside the success band but beyond the balancer's
     # 0.08: off-centre too; 1.0/0.5/0.6 at 0.069 rad: at the centre
-    corner = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
-    assert SwingUpMPC(corner).handover == SwingUpMPC.HANDOVER_OFFSET
-    assert SwingUpMPC(corner, balance={"method": "pulse"}).handover == 0.0
-    assert SwingUpMPC(systems.cart_pendulum(mc=1.0, mp=0.5, L=0.6)).handover == 0.0
+    # (read-only: these three are shared with other tests, conftest.shared_mpc)
+    corner = dict(mc=0.8, mp=0.2, L=0.7)
+    assert shared_mpc(corner).handover == SwingUpMPC.HANDOVER_OFFSET
+    assert shared_mpc(corner, balance={"method": "pulse"}).handover == 0.0
+    assert shared_mpc(dict(mc=1.0, mp=0.5, L=0.6)).handover == 0.0
     paper = SwingUpMPC(systems.cart_pendulum())
     assert paper.handover == 0.0                                  # paper plant: pulse balancer
     paper.reference[0] = 0.3                                     # a target the user set ...
