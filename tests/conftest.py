@@ -125,3 +125,12 @@ def shared_mpc():
         return built[key]
 
     return get
+
+
+@pytest.fixture(scope="session")
+def table_cell():
+    """``table_cell(name, scheme)``: ``paper.table1.run_cell(name, scheme)`` computed once per
+    test process (the spherical and double pendulum cells take 3-4 s each and are checked by
+    several files).  The cell and its model are shared: read them, never modify or refit them."""
+    from lsindy_cas.paper.table1 import run_cell
+    return functools.lru_cache(maxsize=None)(run_cell)
