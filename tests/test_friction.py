@@ -1,6 +1,8 @@
 """Rayleigh dissipation (issue 14): friction in the energy balance, the equations of motion, passive
 data without a scale record, the model file and the CLI — against known answers."""
+import copy
 import dataclasses
+import functools
 import json
 import subprocess
 import sys
@@ -89,6 +91,15 @@ def test_double_pendulum_relative_damper(passive):
 
 
 def _oscillator(rayleigh, seed=0, passive=False, n_runs=3, t_end=4.0, eps=1e-4):
+    """The m = 2, k = 5 oscillator with Rayleigh function ``rayleigh`` and its runs.  Simulated
+    once per test process and arguments (Coulomb friction at ε = 1e-4 is stiff: ~3 s); each call
+    returns its own copy of the runs."""
+    s, runs = _oscillator_runs(rayleigh, seed, passive, n_runs, t_end, eps)
+    return s, copy.deepcopy(runs)
+
+
+@functools.lru_cache(maxsize=None)
+def _oscillator_runs(rayleigh, seed, passive, n_runs, t_end, eps):
     s = dataclasses.replace(systems.mass_spring(m=2.0, k=5.0), rayleigh=rayleigh, coulomb_eps=eps)
     return s, _runs(s, 3.0, n_runs, t_end, seed, passive)
 
