@@ -122,6 +122,21 @@ def test_oscillator_friction_exact_and_absent_terms_exactly_zero():
     assert xdot[1] == pytest.approx((1.0 - 5 * 0.1 - 0.3 * 0.5 - 0.2) / 2, rel=REL)
 
 
+# (next to the test above: the same runs, simulated once per test process)
+def test_integral_form_clean_friction_is_exact_and_ok():
+    """σ = 0 from the project's simulator, no accelerations (integral form, held input): viscous
+    and Coulomb friction exact to 1e-3 and the status ok — the dissipation integrals' quadrature
+    error is below what the χ check calls a misfit (no false alarm on clean data)."""
+    s, runs = _oscillator("0.15*s_dot**2 + 0.2*Abs(s_dot)")
+    runs = [dataclasses.replace(tr, qdd=None) for tr in runs]
+    lib = Library(["s"], ["s**2", "s_dot**2", "s**4"])
+    model = LagrangianSINDy(lib, dissipation=["s_dot**2", "Abs(s_dot)", "s_dot**4"]).fit(runs)
+    assert model.form_ == "integral"
+    assert model.terms() == pytest.approx({"s**2": 2.5, "s_dot**2": 1.0}, rel=REL)
+    assert model.terms("rayleigh") == pytest.approx({"s_dot**2": 0.15, "Abs(s_dot)": 0.2}, rel=REL)
+    assert model.status_ == "ok", model.status_reasons_
+
+
 def test_oscillator_passive_without_scale_is_relative_and_ode_exact(tmp_path):
     s, runs = _oscillator("0.15*s_dot**2", passive=True)
     lib = Library(["s"], ["s**2", "s_dot**2", "s**4"])
@@ -257,17 +272,3 @@ def test_negative_coulomb_hidden_by_viscous_is_refused():
     check_dissipation(lib, np.array([0.15, 0.001]), X)                 # admissible
     with pytest.raises(ValueError, match="dissipation is negative"):
         check_dissipation(lib, np.array([0.15, -0.001]), X)
-
-
-def test_integral_form_clean_friction_is_exact_and_ok():
-    """σ = 0 from the project's simulator, no accelerations (integral form, held input): viscous
-    and Coulomb friction exact to 1e-3 and the status ok — the dissipation integrals' quadrature
-    error is below what the χ check calls a misfit (no false alarm on clean data)."""
-    s, runs = _oscillator("0.15*s_dot**2 + 0.2*Abs(s_dot)")
-    runs = [dataclasses.replace(tr, qdd=None) for tr in runs]
-    lib = Library(["s"], ["s**2", "s_dot**2", "s**4"])
-    model = LagrangianSINDy(lib, dissipation=["s_dot**2", "Abs(s_dot)", "s_dot**4"]).fit(runs)
-    assert model.form_ == "integral"
-    assert model.terms() == pytest.approx({"s**2": 2.5, "s_dot**2": 1.0}, rel=REL)
-    assert model.terms("rayleigh") == pytest.approx({"s_dot**2": 0.15, "Abs(s_dot)": 0.2}, rel=REL)
-    assert model.status_ == "ok", model.status_reasons_
