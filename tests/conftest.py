@@ -105,3 +105,32 @@ def _function_cache(tmp_path_factory):
         os.environ.pop("LSINDY_CACHE_DIR", None)
     else:
         os.environ["LSINDY_CACHE_DIR"] = old
+
+
+@pytest.fixture(scope="session")
+def shared_mpc():
+    """``shared_mpc(plant, **options)``: ``SwingUpMPC(systems.cart_pendulum(**plant), **options)``
+    built once per test process and configuration (a build is ~1.3 s: NLP solvers, lookahead,
+    balancers), for tests that only READ a controller's defaults (weights, nlp.max_iters,
+    ocp.stage_residual, kick(), balancer, handover).  Never step, reset or modify one: a test
+    that does builds its own controller."""
+    from lsindy_cas.mpc import SwingUpMPC
+    built = {}
+
+    def get(plant=None, **options):
+        plant = dict(plant or {})
+        key = (repr(sorted(plant.items())), repr(sorted(options.items())))
+        if key not in built:
+            built[key] = SwingUpMPC(systems.cart_pendulum(**plant), **options)
+        return built[key]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def table_cell():
+    """``table_cell(name, scheme)``: ``paper.table1.run_cell(name, scheme)`` computed once per
+    test process (the spherical and double pendulum cells take 3-4 s each and are checked by
+    several files).  The cell and its model are shared: read them, never modify or refit them."""
+    from lsindy_cas.paper.table1 import run_cell
+    return functools.lru_cache(maxsize=None)(run_cell)

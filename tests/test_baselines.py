@@ -177,7 +177,7 @@ def test_figures_without_pysindy_show_our_model(tmp_path, monkeypatch):
     assert "skipped" in (tmp_path / "baselines.md").read_text()
 
 
-def test_reproduce_without_pysindy_writes_figures(tmp_path, monkeypatch, capsys):
+def test_reproduce_without_pysindy_writes_figures(tmp_path, monkeypatch, capsys, table_cell):
     """``lsindy reproduce`` without pysindy: Table I and our figures, and it says what was skipped.
 
     The experiments are cut to the cart-pendulum (size knob) to keep the test fast.
@@ -187,8 +187,8 @@ def test_reproduce_without_pysindy_writes_figures(tmp_path, monkeypatch, capsys)
     from lsindy_cas.cli import main
     monkeypatch.setitem(sys.modules, "pysindy", None)
     real_figures = figures.make_figures
-    monkeypatch.setattr(table1, "table_one", lambda progress=None: [
-        table1.run_cell("cart", s) for s in ("actuated", "passive")])
+    monkeypatch.setattr(table1, "table_one", lambda progress=None: [   # run_cell, memoised
+        table_cell("cart", s) for s in ("actuated", "passive")])
     monkeypatch.setattr(figures, "make_figures",
                         lambda out, **kw: real_figures(out, **kw, systems=["cart"]))
     assert main(["reproduce", "--out", str(tmp_path)]) == 0

@@ -6,7 +6,7 @@ import pytest
 
 from lsindy_cas import LagrangianSINDy, Library, Trajectory, systems
 from lsindy_cas.cli import main
-from lsindy_cas.paper.table1 import PAPER_SETUPS, run_cell
+from lsindy_cas.paper.table1 import PAPER_SETUPS
 from lsindy_cas.data.smoothing import add_noise
 
 
@@ -19,9 +19,9 @@ def _strip(tr):
     return Trajectory(tr.t, tr.q, tr.qd, tr.coords, Q=tr.Q)
 
 
-def test_constant_input_trap_fires_in_plain_words():
+def test_constant_input_trap_fires_in_plain_words(table_cell):
     """Paper data: constant u = 1 on the cart, x in the library and cyclic in the energy."""
-    cell = run_cell("cart", "actuated")
+    cell = table_cell("cart", "actuated")   # (memoised, shared: conftest.table_cell)
     d, lib = cell.model.diagnostics_, cell.model.library
     assert cell.exact_support
     assert len(d.traps) == 1
@@ -45,9 +45,9 @@ def test_constant_input_trap_other_names_and_no_pure_coordinate_term():
     assert "pos itself is not a library term" in model2.diagnostics_.traps[0]
 
 
-def test_passive_trap_two_conserved_quantities():
+def test_passive_trap_two_conserved_quantities(table_cell):
     """Passive spherical data conserve the energy and a combination built on p_φ = sin²θ φ̇."""
-    cell = run_cell("spherical", "passive")
+    cell = table_cell("spherical", "passive")
     d = cell.model.diagnostics_
     assert cell.exact_support
     assert len(d.conserved) == 1
@@ -56,9 +56,9 @@ def test_passive_trap_two_conserved_quantities():
     assert "phi_dot" in d.conserved[0]
 
 
-def test_passive_data_with_one_conserved_quantity_are_quiet():
+def test_passive_data_with_one_conserved_quantity_are_quiet(table_cell):
     """The double pendulum has no cyclic coordinate: only the energy is conserved."""
-    d = run_cell("double", "passive").model.diagnostics_
+    d = table_cell("double", "passive").model.diagnostics_
     assert d.conserved == [] and d.ok
 
 
@@ -99,8 +99,8 @@ def test_error_when_no_model_is_admissible():
         LagrangianSINDy(Library(["s"], ["s_dot**2", "s_dot**4", "s"])).fit(tr)
 
 
-def test_report_serialises(tmp_path):
-    model = run_cell("cart", "actuated").model
+def test_report_serialises(tmp_path, table_cell):
+    model = table_cell("cart", "actuated").model
     d = json.loads(json.dumps(model.diagnostics_.to_dict()))
     assert d["traps"] and d["null_dim"] == 0 and d["k_automatic"] is False
     saved = json.loads(model.save(tmp_path / "m.json").read_text())

@@ -85,7 +85,7 @@ def test_a_reversal_of_the_creep_leaves_the_band_where_the_pole_turns_round_beyo
         assert b.turn_lean < 0.1 and _reversal_in_band(b)
 
 
-def test_defaults_and_bad_values(light):
+def test_defaults_and_bad_values(light, shared_mpc):
     system, ctrl = light
     assert not ctrl.balancer.turnaround and ctrl.handover == SwingUpMPC.HANDOVER_OFFSET
     b = ctrl.balancer   # the lean at which gravity turns a rate kick - 0.5 round: 0.113 rad
@@ -93,10 +93,11 @@ def test_defaults_and_bad_values(light):
     assert b.turn_lean == pytest.approx((10 * 0.05 / (MC * L) - 0.5) / 3.0, rel=0.03)
     # 0.8/0.2/0.7 turns round at 0.095 rad, inside the success band but beyond the balancer's
     # 0.08: off-centre too; 1.0/0.5/0.6 at 0.069 rad: at the centre
-    corner = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
-    assert SwingUpMPC(corner).handover == SwingUpMPC.HANDOVER_OFFSET
-    assert SwingUpMPC(corner, balance={"method": "pulse"}).handover == 0.0
-    assert SwingUpMPC(systems.cart_pendulum(mc=1.0, mp=0.5, L=0.6)).handover == 0.0
+    # (read-only: these three are shared with other tests, conftest.shared_mpc)
+    corner = dict(mc=0.8, mp=0.2, L=0.7)
+    assert shared_mpc(corner).handover == SwingUpMPC.HANDOVER_OFFSET
+    assert shared_mpc(corner, balance={"method": "pulse"}).handover == 0.0
+    assert shared_mpc(dict(mc=1.0, mp=0.5, L=0.6)).handover == 0.0
     paper = SwingUpMPC(systems.cart_pendulum())
     assert paper.handover == 0.0                                  # paper plant: pulse balancer
     paper.reference[0] = 0.3                                     # a target the user set ...

@@ -6,7 +6,6 @@ import sympy as sp
 from lsindy_cas import Library, systems
 from lsindy_cas.mechanics.legendre import legendre
 from lsindy_cas.mechanics.euler_lagrange import EulerLagrange
-from lsindy_cas.paper.table1 import run_cell
 
 
 def test_cart_pendulum_equations_by_hand():
@@ -49,10 +48,10 @@ def test_legendre_degree_map_and_linear_terms():
 
 
 @pytest.mark.parametrize("name", list(systems.PAPER_SYSTEMS))
-def test_identified_equations_track_truth(name):
+def test_identified_equations_track_truth(table_cell, name):
     """Identified EOM from the paper's x0: 3 s of training span + 3 s of extrapolation."""
     s = systems.PAPER_SYSTEMS[name]()
-    model = run_cell(name, "passive").model
+    model = table_cell(name, "passive").model   # the cell is shared (conftest.table_cell)
     t = np.arange(0, 6.0 + 1e-9, 0.01)
     X_true = s.simulate(t_end=6.0, u=0.0).X
     X_model = model.simulate(s.x0, t)

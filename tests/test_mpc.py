@@ -463,17 +463,33 @@ def test_balancer_hands_over_away_from_the_top_or_with_a_runaway_cart(hard):
     assert b([0.0, np.pi - 0.5, 0.0, 0.0]) is None and not b.engaged
 
 
+@pytest.fixture(scope="module")
+def track_weighted(hard):
+    """The hard plant's controller with balance={"track_weight": w}, one per weight for both
+    signs below: they use only its balancer (whose one state, ``engaged``, each run sets after
+    ``reset()``) and its step function, so a run leaves nothing behind for the next."""
+    system, _ = hard
+    built = {}
+
+    def get(track_weight):
+        if track_weight not in built:
+            built[track_weight] = SwingUpMPC(system, balance={"track_weight": track_weight})
+        return built[track_weight]
+
+    return get
+
+
 @pytest.mark.parametrize("sign", [1.0, -1.0])
-def test_balancer_keeps_the_track_before_the_rate_band(hard, sign):
+def test_balancer_keeps_the_track_before_the_rate_band(track_weighted, sign):
     """Near the end of the track, running outward, with the pole falling the way that needs an
     outward push: the cart band outranks the rate band (track_weight), so the cart stays on the
     track; weighted like the pole bands, the reversing push runs it to 2.15 m."""
-    system, _ = hard
     x0 = np.array([-1.6, np.pi + 0.02, -0.5, 0.2]) * [sign, 1, sign, sign]
     x0[1] = np.pi + sign * 0.02
     for track_weight, inside in ((10.0, True), (1.0, False)):
-        ctrl = SwingUpMPC(system, balance={"track_weight": track_weight})
+        ctrl = track_weighted(track_weight)
         b, x, track = ctrl.balancer, x0.copy(), abs(x0[0])
+        b.reset()
         b.engaged = True
         for _ in range(30):  # 1.5 s, or until the pole leaves the balancer's region
             level = b(x)
@@ -572,14 +588,14 @@ def test_solve_balanced_solves_every_step(model):
     assert ctrl.stats.n_solves == 2 and ctrl.stats.n_balanced == 2 and ctrl.stats.n_resumed == 0
 
 
-def test_top_rate_term_known_answer():
+def test_top_rate_term_known_answer(shared_mpc):
     """The NLP's stage residual ends with sqrt(top_rate) * max(|theta_dot| cos^4((theta - pi)
     / 2) - top_rate_band, 0): the pole rate beyond three kicks (1.5 rad/s on the paper's plant,
     F dt / (m_c L) = 10 * 0.05 / (1 * 1) = 0.5 rad/s to first order) counts near the top only."""
-    from lsindy_cas import systems
     from lsindy_cas.mpc import SwingUpMPC
 
-    ctrl = SwingUpMPC(systems.cart_pendulum(), balance=False)
+    # read-only: the controllers are shared with other tests (conftest.shared_mpc)
+    ctrl = shared_mpc(balance=False)
     band = SwingUpMPC.TOP_RATE_KICKS * ctrl.kick()
     assert band == pytest.approx(1.5, rel=0.01)
     r = ctrl.ocp.stage_residual
@@ -590,18 +606,17 @@ def test_top_rate_term_known_answer():
     # 90 degrees from the top: cos^4(pi/4) = 1/4, so 8 rad/s counts as 2
     assert top(np.pi / 2, 8.0) == pytest.approx(2.0 - band)
     # a heavier cart with a longer pole: a third of the kick, a third of the band
-    heavy = SwingUpMPC(systems.cart_pendulum(mc=2.0, mp=0.5, L=1.5), balance=False)
+    heavy = shared_mpc(dict(mc=2.0, mp=0.5, L=1.5), balance=False)
     assert SwingUpMPC.TOP_RATE_KICKS * heavy.kick() == pytest.approx(0.5, rel=0.05)
-    off = SwingUpMPC(systems.cart_pendulum(), balance=False, weights={"top_rate": 0.0})
+    off = shared_mpc(balance=False, weights={"top_rate": 0.0})
     assert float(off.ocp.stage_residual(np.array([0.0, np.pi, 0.0, 3.0]))[-1]) == 0.0
     # by default off where the sequence balancer is chosen (kick 10*0.05/(0.8*0.7) = 0.89),
     # on where the pulse balancer is (0.50), and as given when given
-    light = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
+    light = dict(mc=0.8, mp=0.2, L=0.7)
     at_top = np.array([0.0, np.pi, 0.0, 2.5])
-    assert float(SwingUpMPC(light).ocp.stage_residual(at_top)[-1]) == 0.0
-    assert float(SwingUpMPC(systems.cart_pendulum()).ocp.stage_residual(at_top)[-1]) == \
-        pytest.approx(2.5 - band)
-    given = SwingUpMPC(light, weights={"top_rate": 4.0})  # band: 3 kicks, 2.70 rad/s
+    assert float(shared_mpc(light).ocp.stage_residual(at_top)[-1]) == 0.0
+    assert float(shared_mpc().ocp.stage_residual(at_top)[-1]) == pytest.approx(2.5 - band)
+    given = shared_mpc(light, weights={"top_rate": 4.0})  # band: 3 kicks, 2.70 rad/s
     fast = np.array([0.0, np.pi, 0.0, 3.5])
     assert float(given.ocp.stage_residual(fast)[-1]) == pytest.approx(
         2.0 * (3.5 - SwingUpMPC.TOP_RATE_KICKS * given.kick()))
@@ -627,19 +642,18 @@ def test_a_heavier_cart_and_longer_pole_is_caught_not_spun_around():
     assert ep.success and ep.time_to_upright < 4.0
 
 
-def test_warm_sqp_cap_is_7_with_the_pulse_balancer_and_10_with_the_sequence_one():
+def test_warm_sqp_cap_is_7_with_the_pulse_balancer_and_10_with_the_sequence_one(shared_mpc):
     """The cap of 7 (p99 under 20 ms on the paper plant) is the default where the pulse
     balancer is chosen (kick 0.50 rad/s); where the sequence balancer is (kick 0.89), 10, as
     measured on the family; an explicit max_iter wins."""
-    from lsindy_cas import systems
     from lsindy_cas.mpc import SwingUpMPC
 
-    light = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
-    assert SwingUpMPC(systems.cart_pendulum()).nlp.max_iters["warm"] == 7
-    assert SwingUpMPC(light).nlp.max_iters["warm"] == SwingUpMPC.SEQUENCE_MAX_ITER == 10
-    assert SwingUpMPC(systems.cart_pendulum(),
-                      balance={"method": "sequence"}).nlp.max_iters["warm"] == 10
-    assert SwingUpMPC(light, max_iter=5).nlp.max_iters["warm"] == 5
+    # read-only: the controllers are shared with other tests (conftest.shared_mpc)
+    light = dict(mc=0.8, mp=0.2, L=0.7)
+    assert shared_mpc().nlp.max_iters["warm"] == 7
+    assert shared_mpc(light).nlp.max_iters["warm"] == SwingUpMPC.SEQUENCE_MAX_ITER == 10
+    assert shared_mpc(balance={"method": "sequence"}).nlp.max_iters["warm"] == 10
+    assert shared_mpc(light, max_iter=5).nlp.max_iters["warm"] == 5
 
 
 def test_energy_gap_is_the_hand_derived_pole_energy(model):
@@ -660,16 +674,17 @@ def test_energy_gap_is_the_hand_derived_pole_energy(model):
             -1.0 + p["L"] * thd ** 2 / (4 * p["g"]), abs=1e-6)
 
 
-def test_energy_weight_default_follows_the_balancer():
+def test_energy_weight_default_follows_the_balancer(shared_mpc):
     """On by default (100) where the pulse balancer is chosen (the slow pendulums it was built
     for); off where the sequence balancer is (it only reshuffled hand-overs there) and for a
     model without an energy; an explicit weight is always used."""
     assert SwingUpMPC.default_weights["energy"] == 100.0
-    assert SwingUpMPC(systems.cart_pendulum()).weights["energy"] == 100.0
-    light = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)  # kick 0.89: sequence balancer
-    assert SwingUpMPC(light).weights["energy"] == 0.0
-    assert SwingUpMPC(light, weights={"energy": 5.0}).weights["energy"] == 5.0
-    assert SwingUpMPC(systems.cart_pendulum(), weights={"energy": 0.0}).weights["energy"] == 0.0
+    # read-only: the controllers are shared with other tests (conftest.shared_mpc)
+    assert shared_mpc().weights["energy"] == 100.0
+    light = dict(mc=0.8, mp=0.2, L=0.7)  # kick 0.89: sequence balancer
+    assert shared_mpc(light).weights["energy"] == 0.0
+    assert shared_mpc(light, weights={"energy": 5.0}).weights["energy"] == 5.0
+    assert shared_mpc(weights={"energy": 0.0}).weights["energy"] == 0.0
 
 
 def test_energy_weight_bad_input():

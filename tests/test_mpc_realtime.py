@@ -30,7 +30,8 @@ def test_fatrop_recovers_the_sqp_optimum(model):
     converged SQP plan converges to a plan as cheap, with multipliers of the same sign: the
     shooting gaps' sign convention is translated (fatrop sees x_{k+1} - F, HPIPM F - x_{k+1})."""
     assert default_robust_solver() == "fatrop"
-    assert SwingUpMPC(model).cold == "fatrop" and SwingUpMPC(model).recovery == "fatrop"
+    default = SwingUpMPC(model)
+    assert default.cold == "fatrop" and default.recovery == "fatrop"
     ctrl = SwingUpMPC(model, cold="fatrop", recovery="fatrop")
     assert ctrl.cold == "fatrop" and ctrl.recovery == "fatrop"
     nlp = ctrl.nlp

@@ -21,22 +21,23 @@ def corner():
     return system, SwingUpMPC(system, balance={"method": "sequence"})
 
 
-def test_plant_quantities_come_from_the_model(corner):
-    system, ctrl = corner
+def test_plant_quantities_come_from_the_model(corner, shared_mpc):
+    _, ctrl = corner
     b = ctrl.balancer
     assert isinstance(b, SequenceBalancer)
     # the discrete kick of the linearised RK4 step: F dt / (m_c L) to within gravity's < 1 %
     assert b.kick == pytest.approx(10.0 * 0.05 / (0.8 * 0.7), rel=0.01)
     assert b.rate_band == pytest.approx(b.kick / 2 + 0.02)
     # paper plant: kick 0.5, band at its lower clip
-    paper = SwingUpMPC(systems.cart_pendulum(), balance={"method": "sequence"}).balancer
+    # (read-only: the controllers of shared_mpc are shared with other tests, conftest.py)
+    paper = shared_mpc(balance={"method": "sequence"}).balancer
     assert paper.kick == pytest.approx(0.5, rel=0.01) and paper.rate_band == 0.42
     # the cart speed per pole rate of a push is the pole length (m_c L / m_c)
     assert b.ratio == pytest.approx(0.7, rel=0.02)
     # balance=True picks the balancer by the model's kick: sequence here, pulse on the paper's
     assert ctrl.kick() == pytest.approx(b.kick)
-    assert isinstance(SwingUpMPC(system).balancer, SequenceBalancer)
-    assert type(SwingUpMPC(systems.cart_pendulum()).balancer).__name__ == "PulseBalancer"
+    assert isinstance(shared_mpc(dict(mc=0.8, mp=0.2, L=0.7)).balancer, SequenceBalancer)
+    assert type(shared_mpc().balancer).__name__ == "PulseBalancer"
 
 
 def assert_exhaustive_optimum(b, errors, horizon=7):

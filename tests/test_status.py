@@ -33,8 +33,8 @@ def _spherical_passive(m, L, integral):
 
 
 @pytest.mark.parametrize("name,scheme", [("cart", "actuated"), ("spherical", "passive")])
-def test_clean_table_one_cells_are_ok(name, scheme):
-    cell = run_cell(name, scheme)
+def test_clean_table_one_cells_are_ok(table_cell, name, scheme):
+    cell = table_cell(name, scheme)   # (memoised: conftest.table_cell)
     assert cell.exact_support and cell.max_rel_error < 1e-9
     assert cell.model.status_ == "ok" and cell.model.ok_ and cell.model.status_reasons_ == []
     assert cell.model.diagnostics_.checks["simulation_drift"] < 1e-6

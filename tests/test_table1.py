@@ -4,7 +4,7 @@ import pytest
 import sympy as sp
 
 from lsindy_cas import Library, LagrangianSINDy, systems
-from lsindy_cas.paper.table1 import PAPER_SETUPS, SCHEMES, run_cell
+from lsindy_cas.paper.table1 import PAPER_SETUPS, SCHEMES
 
 # Training data come from DOP853 at rtol 1e-11 with exact accelerations, so the energy balance holds
 # to ~1e-10 relative; coefficients must match to far better than the paper's 3 decimals.  1e-6 is
@@ -14,8 +14,8 @@ RTOL = 1e-6
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 @pytest.mark.parametrize("name", list(PAPER_SETUPS))
-def test_cell_exact(name, scheme):
-    cell = run_cell(name, scheme)
+def test_cell_exact(table_cell, name, scheme):
+    cell = table_cell(name, scheme)   # (memoised: conftest.table_cell)
     system = systems.PAPER_SYSTEMS[name]()
     lib = cell.model.library
     truth_h = lib.coefficients(system.hamiltonian)
@@ -27,9 +27,9 @@ def test_cell_exact(name, scheme):
     assert cell.exact_support and cell.max_rel_error < RTOL
 
 
-def test_double_pendulum_support_in_library_terms():
+def test_double_pendulum_support_in_library_terms(table_cell):
     """cos(θ1−θ2) appears as θ̇1θ̇2 cosθ1 cosθ2 + θ̇1θ̇2 sinθ1 sinθ2 (Table I)."""
-    cell = run_cell("double", "actuated")
+    cell = table_cell("double", "actuated")
     terms = cell.model.terms()
     assert terms["theta1_dot*theta2_dot*cos(theta1)*cos(theta2)"] == pytest.approx(1.0, rel=RTOL)
     assert terms["theta1_dot*theta2_dot*sin(theta1)*sin(theta2)"] == pytest.approx(1.0, rel=RTOL)
@@ -37,11 +37,11 @@ def test_double_pendulum_support_in_library_terms():
     assert len(terms) == 6
 
 
-def test_spherical_passive_two_conserved_quantities():
+def test_spherical_passive_two_conserved_quantities(table_cell):
     """Passive spherical data conserve E and p_φ = sin²θ φ̇, so e.g. ½θ̇² + ½p_φ φ̇ + g cos θ is
     conserved too; those supports score as well as the energy and must be rejected (the paper
     reports failure for this cell)."""
-    cell = run_cell("spherical", "passive")
+    cell = table_cell("spherical", "passive")
     assert cell.exact_support and cell.max_rel_error < RTOL
     lib = cell.model.library
     rejected = [c for c in cell.model.search_.candidates if c.admissible is False]

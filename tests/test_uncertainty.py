@@ -285,11 +285,10 @@ def test_format_pm_two_digits_of_the_error():
                                   [0.04903, 0.0, 9.81234])
 
 
-def test_exact_fit_has_tiny_errors_and_short_printout(tmp_path):
+def test_exact_fit_has_tiny_errors_and_short_printout(tmp_path, table_cell):
     """σ = 0 (exact accelerations): standard errors at round-off, coefficients printed plainly."""
     from lsindy_cas import LagrangianSINDy
-    from lsindy_cas.paper.table1 import run_cell
-    model = run_cell("cart", "actuated").model
+    model = table_cell("cart", "actuated").model   # (memoised: conftest.table_cell)
     S = list(model.support_)
     # round-off of a least-squares fit in double precision: far below 1e-8 relative
     assert np.all(model.coef_std_[S] < 1e-8 * np.abs(model.coef_[S]))
