@@ -24,7 +24,8 @@ import numpy as np
 
 from .mpc import wrap_angle
 
-__all__ = ["com_speed_step", "find_upright", "handover_side", "step_kick", "upright_kick"]
+__all__ = ["com_speed_step", "find_upright", "handover_side", "reversal_in_band", "step_kick",
+           "upright_kick"]
 
 
 def find_upright(ode, cart_index, pole_index, n_grid=720):
@@ -120,3 +121,36 @@ def handover_side(balancer, x, window=0.25):
     if abs(phase - 0.5) <= window:
         return 0
     return 1 if phase < 0.5 else -1
+
+
+def reversal_in_band(balancer, angle=0.1, rate=0.5, periods=80, n=199):
+    """Whether the cart's creep can be reversed with the pole kept in the band ``|phi| < angle``,
+    ``|theta_dot| < rate`` (the success band by default) at every sample.
+
+    A reversal changes the pair of levels the centre of mass's speed alternates between, which
+    takes two pushes of one sign with only zero forces between them.  Between pushes ``phi'' =
+    omega2 phi`` keeps ``theta_dot^2 - omega2 phi^2`` constant, so the rate must turn round and,
+    pushes taken as instantaneous, the second comes at ``|phi| >= (kick - rate) / omega``
+    (``turn_lean`` for the success band's rate).  Checked here exhaustively on the pole's part of
+    ``balancer``'s discrete upright linearisation (a
+    :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer`): every state of an ``n`` x
+    ``n`` grid of the band, both signs, 0 to ``periods - 1`` zero periods between the pushes,
+    the band required at the samples only.  That is a little more lenient than the bound (a
+    push acts over its period, with gravity): with the success band it finds a reversal up to
+    ``turn_lean`` ~0.110 rad (none on the family's 0.5/0.05/1.2 at 0.112).
+    """
+    ip = balancer.ip
+    A = balancer.A[np.ix_([ip, 2 + ip], [ip, 2 + ip])]
+    push = balancer.B[[ip, 2 + ip], None] * float(np.max(np.abs(balancer.levels)))
+    inside = lambda s: (np.abs(s[0]) < angle) & (np.abs(s[1]) < rate)  # noqa: E731
+    grid = np.meshgrid(np.linspace(-angle, angle, n + 2)[1:-1],
+                       np.linspace(-rate, rate, n + 2)[1:-1])
+    for sign in (1.0, -1.0):
+        s = A @ np.stack([g.ravel() for g in grid]) + sign * push
+        ok = inside(s)
+        for _ in range(periods):
+            if (ok & inside(A @ s + sign * push)).any():
+                return True
+            s = A @ s
+            ok &= inside(s)
+    return False
