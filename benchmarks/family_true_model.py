@@ -91,7 +91,7 @@ def main(argv=None):
     n = len(rows)
     a = sum(r["nominal_model"] for r in rows)
     b = sum(r["true_model"] for r in rows)
-    lines = [f"`python benchmarks/family_true_model.py --out DIR --plant {args.plant} --patterns "
+    lines = [f"`python benchmarks/family_true_model.py --out DIR --plant {args.plant} --patterns="
              f"{','.join(pats)}` ({time.perf_counter() - t0:.0f} s): the reachable mismatched "
              f"episodes of {args.plant} with these sign patterns (cart mass, pole mass, length), "
              f"controller on the nominal identified model (the family run) against one on the "
