@@ -201,3 +201,32 @@ def test_rollout_cost_is_the_interval_by_interval_sum(corner):
             ref += b._stage(z, 0.01) + b.push_weight * (u != 0)
         ref += b._terminal(z)
         np.testing.assert_array_equal(b._rollout_cost(e, seqs, gain_b, bias, 0.01), ref)
+
+
+def test_lean_stiffness_shifts_the_lean_column_of_the_predictions(corner, shared_mpc):
+    """``search(..., stiffness=s)`` plans exactly as a balancer whose linearisation has ``s``
+    added to its lean column (x+ = (A + s e_phi^T) x + ...); the controller turns the
+    correction's lean term on where the sequence balancer balances, and not on the paper
+    plant's pulse balancer (whose closed loop is unchanged)."""
+    _, ctrl = corner
+    b = ctrl.balancer
+    assert ctrl.correction.lean == (1, pytest.approx(ctrl.upright))
+    assert shared_mpc().correction.lean is None                    # paper plant: pulse
+    rng = np.random.default_rng(7)
+    A = b.A.copy()
+    try:
+        for _ in range(5):
+            e = rng.normal(scale=[0.3, 0.03, 0.2, 0.2])
+            gain, bias = rng.normal(scale=0.05, size=4), rng.normal(scale=1e-3, size=4)
+            stiff = rng.normal(scale=0.05, size=4)
+            b.plan = None
+            got = b.search(e, gain, bias, stiff)
+            b.A = A.copy()
+            b.A[:, b.ip] += stiff
+            b.plan = None
+            want = b.search(e, gain, bias)
+            b.A = A
+            np.testing.assert_array_equal(got[0], want[0])
+            assert got[1] == want[1]
+    finally:
+        b.A, b.plan = A, None

@@ -207,6 +207,8 @@ class SwingUpMPC(DiscreteInputMPC):
     #: default ``handover`` (m) where the pole turns round only beyond the balancer's angle
     #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md, stop 31)
     HANDOVER_OFFSET = 0.6
+    #: the online correction also fits gravity's torque (the lean) where the sequence balancer is
+    LEAN_CORRECTION = True
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
@@ -348,6 +350,9 @@ class SwingUpMPC(DiscreteInputMPC):
         # where the swing-up hands over (module upright): off-centre where the pole turns
         # round only beyond the balancer's angle band
         sequence = isinstance(self.balancer, SequenceBalancer)
+        if sequence and self.correction is not None and self.LEAN_CORRECTION:
+            self.correction.lean = (ip, float(self.upright))
+            self.correction.reset()
         if handover is None:
             hard = sequence and self.balancer.turn_lean > self.balancer.angle_band
             handover = self.HANDOVER_OFFSET if hard else 0
