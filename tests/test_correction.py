@@ -91,3 +91,58 @@ def test_update_is_the_per_component_rls_step():
         corr.update(x, force, x_next)
         np.testing.assert_allclose(corr.theta, theta, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(corr.cov, cov, rtol=1e-12, atol=1e-15)
+
+
+def test_lean_term_converges_to_the_plant_stiffness():
+    """Synthetic: the plant adds ``stiffness * sin(x[0] - upright)`` to the gain/offset error;
+    with ``lean=(0, upright)`` the three-parameter RLS recovers all three, exactly on noise-free
+    data; without it the prediction keeps the lean's error."""
+    step = _model_step()
+    gain, bias, stiff, up = np.array([0.3, -0.2]), np.array([1e-3, -0.02]), np.array([0.0, 0.7]), 0.3
+    corr = InputGainCorrection(step, 0, forgetting=0.95, lean=(0, up))
+    plain = InputGainCorrection(step, 0, forgetting=0.95)
+    rng = np.random.default_rng(3)
+    for _ in range(1000):
+        x = rng.normal(size=2)
+        force = rng.choice([-10.0, 0.0, 10.0])
+        x_next = _plant(step, x, force, gain, bias) + stiff * np.sin(x[0] - up)
+        corr.update(x, force, x_next)
+        plain.update(x, force, x_next)
+    np.testing.assert_allclose(corr.stiffness, stiff, atol=1e-6)
+    np.testing.assert_allclose(corr.gain, gain, atol=1e-6)
+    np.testing.assert_allclose(corr.bias, bias, atol=1e-6)
+    x = np.array([0.9, -1.0])
+    truth = _plant(step, x, 10.0, gain, bias) + stiff * np.sin(x[0] - up)
+    np.testing.assert_allclose(corr.predict(x, 10.0), truth, atol=1e-6)
+    assert abs(plain.predict(x, 10.0) - truth)[1] > 0.1
+    assert not plain.stiffness.any() and plain.theta.shape == (2, 2)   # off: as before
+    corr.reset()
+    assert corr.theta.shape == (2, 3) and not corr.theta.any()
+
+
+def test_lean_term_on_a_cart_pendulum_with_stronger_gravity_is_the_hand_derived_one():
+    """Model and plant differ only in g (10 % more on the plant): the push acts alike (gain 0)
+    and, near the upright, the pole's rate error per interval is (omega_p^2 - omega_m^2) dt
+    sin(phi) with omega^2 = (m_c + m_p) g / (m_c L) for the point-mass pole."""
+    from lsindy_cas import systems
+    from lsindy_cas.control.ocp import rk4_step
+    mc, mp, L, g = 0.8, 0.2, 0.7, 9.81
+    model = rk4_step(systems.cart_pendulum(mc=mc, mp=mp, L=L, g=g).ode(), 4, 2, DT, 1)
+    plant = rk4_step(systems.cart_pendulum(mc=mc, mp=mp, L=L, g=1.1 * g).ode(), 4, 2, DT, 1)
+    corr = InputGainCorrection(model, 0, lean=(1, np.pi))
+    rng = np.random.default_rng(4)
+    for _ in range(400):
+        x = np.array([0.0, np.pi, 0.0, 0.0]) + rng.normal(scale=[0.3, 0.05, 0.3, 0.3])
+        force = float(rng.choice([-10.0, 0.0, 10.0]))
+        corr.update(x, force, np.asarray(plant(x, [force, 0.0])).ravel())
+    expected = 0.1 * (mc + mp) * g / (mc * L) * DT    # theta'' = +omega^2 sin(theta - pi)
+    assert corr.stiffness[3] == pytest.approx(expected, rel=0.02)    # measured 0.3 %
+    assert abs(corr.gain[3]) < 0.01
+
+
+@pytest.mark.parametrize("lean, exc", [((1,), TypeError), ("1", TypeError),
+                                       ((2, 0.0), ValueError), ((0, float("nan")), ValueError),
+                                       ((0, "pi"), TypeError)])
+def test_bad_lean(lean, exc):
+    with pytest.raises(exc, match="lean"):
+        InputGainCorrection(_model_step(), 0, lean=lean)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .._validate import check_real, relative_energy
+from .._validate import check_choice, check_real, relative_energy
 from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
 from .sequence_balancer import SequenceBalancer
@@ -161,6 +161,11 @@ class SwingUpMPC(DiscreteInputMPC):
         :meth:`reset`; the swing-up's costs are measured from there, :attr:`reference`).
         None: :attr:`HANDOVER_OFFSET` where gravity turns the pole round only beyond the
         balancer's angle band (its ``turn_lean > angle_band``), else 0 (the centre).
+    adapt_lean : bool, optional
+        Whether the online correction also fits the plant's gravity torque (a term in the sine
+        of the pole's lean, :mod:`~lsindy_cas.control.correction`), used by the sequence
+        balancer's predictions.  None: where the sequence balancer is chosen (not on the
+        paper plant's pulse balancer).  Needs ``adapt`` (the default).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -210,7 +215,7 @@ class SwingUpMPC(DiscreteInputMPC):
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
-                 balance=True, guard=True, handover=None, **options):
+                 balance=True, guard=True, handover=None, adapt_lean=None, **options):
         coords = getattr(model, "coords_", None) or getattr(model, "coords", None)
         if coords is None or not hasattr(model, "ode"):
             raise TypeError("model must be a fitted cart-pendulum model with coords_ and ode().")
@@ -307,7 +312,8 @@ class SwingUpMPC(DiscreteInputMPC):
         self.weights = w
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)
-        self._parts = (guard, balance, kind, balance_options, track_margin, handover)
+        self._parts = (guard, balance, kind, balance_options, track_margin, handover,
+                       check_choice("adapt_lean", adapt_lean, (None, False, True)))
         super().__init__(ode, force_set, input_index=ic,
                          stage_residual=ca.Function("r", [x], [r]),
                          terminal_residual=ca.Function("rN", [x], [r_end]),
@@ -317,7 +323,7 @@ class SwingUpMPC(DiscreteInputMPC):
 
     def _before_build(self):
         """The track guard and the balancer(s), from the model's step (DiscreteInputMPC hook)."""
-        guard, balance, kind, balance_options, track_margin, handover = self._parts
+        guard, balance, kind, balance_options, track_margin, handover, lean = self._parts
         del self._parts
         ic, ip = self.cart_index, self.pole_index
         self.guard = None
@@ -348,6 +354,11 @@ class SwingUpMPC(DiscreteInputMPC):
         # where the swing-up hands over (module upright): off-centre where the pole turns
         # round only beyond the balancer's angle band
         sequence = isinstance(self.balancer, SequenceBalancer)
+        if lean and self.correction is None:
+            raise ValueError("adapt_lean=True needs the online correction (adapt=True).")
+        if (sequence if lean is None else lean) and self.correction is not None:
+            self.correction.lean = (ip, float(self.upright))  # the correction's lean term
+            self.correction.reset()
         if handover is None:
             hard = sequence and self.balancer.turn_lean > self.balancer.angle_band
             handover = self.HANDOVER_OFFSET if hard else 0

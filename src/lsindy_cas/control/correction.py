@@ -10,6 +10,11 @@ by recursive least squares with exponential forgetting (offset-free MPC), and pr
 over one interval, so ``gain`` scales it (a plant whose push is 20 % stronger has
 ``gain = 0.2``) and ``bias`` absorbs what does not depend on the input.  The controller owns one
 instance and hands it to whatever predicts with it (its lookahead, the balancer).
+
+With ``lean=(pole_index, upright)`` a third term, ``stiffness_i * sin(x_prev[pole_index] -
+upright)``, fits what gravity's torque does differently on the plant (a pole 10 % shorter turns
+over 10 % faster): near the upright the offset cannot follow it, as the lean changes sign with
+every push.  ``SwingUpMPC`` turns it on where its sequence balancer balances (issue 16, stop 32).
 """
 
 from __future__ import annotations
@@ -49,7 +54,10 @@ class InputGainCorrection:
     #: bound on the entries of the covariance (keeps forgetting from blowing it up)
     COV_BOUND = 1e3
 
-    def __init__(self, step, input_index, *, forgetting=0.95, max_gain=0.5):
+    #: prior variance of the lean's coefficient (``lean=``): per radian of lean, per interval
+    LEAN_PRIOR = 1.0
+
+    def __init__(self, step, input_index, *, forgetting=0.95, max_gain=0.5, lean=None):
         self.step = step
         self._step = NumericFunction(step)
         self.n_state, self.n_input = step.size1_in(0), step.size1_in(1)
@@ -58,12 +66,21 @@ class InputGainCorrection:
         if not 0 < self.forgetting <= 1:
             raise ValueError(f"forgetting must be in (0, 1], got {forgetting!r}.")
         self.max_gain = check_real("max_gain", max_gain, nonnegative=True)
+        #: None, or ``(pole_index, upright)``: a third regressor, the sine of the pole's lean
+        #: from the upright, fits model error in gravity's torque (e.g. the pole's length)
+        self.lean = None
+        if lean is not None:
+            if not isinstance(lean, (tuple, list)) or len(lean) != 2:
+                raise TypeError(f"lean must be None or (pole_index, upright), got {lean!r}.")
+            self.lean = (check_int("lean[0]", lean[0], low=0, high=self.n_state - 1),
+                         check_real("lean[1]", lean[1]))
         self.reset()
 
     def reset(self):
         """Back to no correction (``gain = bias = 0``) and the prior covariance."""
-        self.theta = np.zeros((self.n_state, 2))
-        self.cov = np.tile(np.diag(self.PRIOR), (self.n_state, 1, 1))
+        prior = self.PRIOR + ((self.LEAN_PRIOR,) if self.lean is not None else ())
+        self.theta = np.zeros((self.n_state, len(prior)))
+        self.cov = np.tile(np.diag(prior), (self.n_state, 1, 1))
 
     @property
     def gain(self):
@@ -74,6 +91,15 @@ class InputGainCorrection:
     def bias(self):
         """Offset per state component, shape (n_state,)."""
         return self.theta[:, 1]
+
+    @property
+    def stiffness(self):
+        """Per state component, the coefficient of the sine of the pole's lean (zeros without
+        ``lean``), shape (n_state,)."""
+        return self.theta[:, 2] if self.lean is not None else np.zeros(self.n_state)
+
+    def _sin_lean(self, x):
+        return float(np.sin(x[self.lean[0]] - self.lean[1]))
 
     def _responses(self, x, force):
         """The model's next state ``F(x, u)`` with ``force`` applied and ``F(x, 0)``."""
@@ -91,8 +117,10 @@ class InputGainCorrection:
         ndarray, shape (n_state,)
             ``F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``.
         """
-        x_u, x_0 = self._responses(np.asarray(x, dtype=float), float(force))
-        return x_u + self.gain * (x_u - x_0) + self.bias
+        x = np.asarray(x, dtype=float)
+        x_u, x_0 = self._responses(x, float(force))
+        out = x_u + self.gain * (x_u - x_0) + self.bias
+        return out + self.stiffness * self._sin_lean(x) if self.lean is not None else out
 
     def update(self, x_prev, force, x):
         """One RLS step on the transition ``x_prev --force--> x`` (measured states).
@@ -108,7 +136,10 @@ class InputGainCorrection:
         err = x - x_u
         lam = self.forgetting
         # the n_state two-parameter RLS problems at once (batched matrix products)
-        phi = np.stack([x_u - x_0, np.ones(self.n_state)], axis=1)        # (n_state, 2)
+        cols = [x_u - x_0, np.ones(self.n_state)]
+        if self.lean is not None:
+            cols.append(np.full(self.n_state, self._sin_lean(x_prev)))
+        phi = np.stack(cols, axis=1)                                        # (n_state, p)
         Pphi = np.matmul(self.cov, phi[:, :, None])[:, :, 0]
         k = Pphi / (lam + np.matmul(phi[:, None, :], Pphi[:, :, None])[:, 0, 0])[:, None]
         innovation = err - np.matmul(phi[:, None, :], self.theta[:, :, None])[:, 0, 0]

@@ -135,18 +135,17 @@ class SequenceBalancer(PulseBalancer):
         The margin asked for at every predicted state, as a share of the largest one.
     viability_cart : bool
         Fade the kernel term as the cart needs the lean to stop (:meth:`cart_urgency`).
-    speed_weight : float, optional
-        Weight of the cart-speed term (module docstring); None: ``SPEED_WEIGHT`` if
-        :attr:`turnaround` is False, else 0.
-    speed_time : float
-        Time (s) in which that term returns the cart (target speed ``-x / speed_time``).
+    speed_weight, speed_time : float
+        Weight of the cart-speed term (module docstring; None: ``SPEED_WEIGHT`` if
+        :attr:`turnaround` is False, else 0) and its time (s): target speed ``-x / speed_time``.
     viability_schedule : sequence of float, optional
         Input-gain factors to build one kernel each for at construction; each plan uses the
         one nearest to the online correction's estimate ``1 + gain`` of the pole rate.
     **options
         ``angle_band``, ``region``, ``max_lean``, ``cart_frequency``, ``cart_damping``,
         ``lean_weight``, ``push_weight``, ``mode_weight``, ``track_margin``, ``track_weight``,
-        ``brake_fraction``, ``correction``: as for :class:`PulseBalancer`.
+        ``brake_fraction``, ``correction``: as for :class:`PulseBalancer` (a correction with
+        a ``lean`` regressor also corrects the lean's effect: :meth:`search`'s ``stiffness``).
 
     Attributes
     ----------
@@ -331,9 +330,8 @@ class SequenceBalancer(PulseBalancer):
         return abs(p + v0 * abs(v0) / (2 * brake)) / (self.track_limit - self.track_margin)
 
     def _escape(self, z):
-        """Penalty on the lean the pole must reach before a push can keep its rate in the band.
-
-        Between pushes ``E = theta_dot^2 - omega2 * phi^2`` is conserved; a push keeps the rate
+        """Penalty on the lean the pole must reach before a push can keep its rate in the band:
+        between pushes ``E = theta_dot^2 - omega2 * phi^2`` is conserved; a push keeps the rate
         inside ``rate_band`` only once ``|theta_dot| >= kick - rate_band``, which the pole
         reaches at ``phi*^2 = ((kick - rate_band)^2 - E) / omega2``.  The squared excess of
         ``phi*`` over ``angle_band``, weighted as a band violation times ``escape_weight``.
@@ -356,14 +354,14 @@ class SequenceBalancer(PulseBalancer):
         phi = -(self.wn ** 2 * e[self.ic] + 2 * self.zeta * self.wn * v) / self.kappa
         return float(np.clip(phi, -self.max_lean, self.max_lean))
 
-    def _rollout_cost(self, e, seqs, b, bias, phi_ref):
+    def _rollout_cost(self, e, seqs, b, bias, phi_ref, A=None):
         """Costs of whole level-index sequences ``seqs`` (n, horizon) from error state ``e``
         (the stage costs of all intervals in one call, summed interval by interval)."""
         n, H = seqs.shape
-        z, zs = np.tile(e, (n, 1)), np.empty((H, n, 4))
+        z, zs, A = np.tile(e, (n, 1)), np.empty((H, n, 4)), self.A if A is None else A
         u = self.levels[seqs]
         for k in range(H):
-            z = zs[k] = z @ self.A.T + bias + u[:, k, None] * b
+            z = zs[k] = z @ A.T + bias + u[:, k, None] * b
         stage = self._stage(zs.reshape(-1, 4), phi_ref).reshape(H, n)
         push = self.push_weight * (u != 0)
         cost = np.zeros(n)
@@ -371,15 +369,18 @@ class SequenceBalancer(PulseBalancer):
             cost += stage[k] + push[:, k]
         return cost + self._terminal(z)
 
-    def search(self, e, gain=None, bias=None):
+    def search(self, e, gain=None, bias=None, stiffness=None):
         """Best level-index sequence from error state ``e`` (4,) and its cost.
 
-        ``gain`` and ``bias`` (4,) correct the predictions, ``x+ = A x + (1 + gain) B u + bias``.
-        Sets :attr:`proven` and :attr:`nodes`.
+        ``gain``, ``bias`` and ``stiffness`` (4,) correct the predictions, ``x+ = A x + (1 +
+        gain) B u + bias + stiffness * phi``.  Sets :attr:`proven` and :attr:`nodes`.
         """
         gain = np.zeros(4) if gain is None else np.asarray(gain, dtype=float)
         bias = np.zeros(4) if bias is None else np.asarray(bias, dtype=float)
-        b = self.B * (1.0 + gain)
+        b, A = self.B * (1.0 + gain), self.A
+        if stiffness is not None:
+            A = A.copy()
+            A[:, self.ip] += stiffness
         if len(self.kernels) > 1:
             self._use_kernel(1.0 + gain[2 + self.ip])
         H, n_lev = self.horizon, self.levels.size
@@ -392,14 +393,14 @@ class SequenceBalancer(PulseBalancer):
         if self.plan is not None:
             cands.append(np.append(self.plan[1:], self.zero))
         cands = np.array(cands)
-        inc_costs = self._rollout_cost(e, cands, b, bias, phi_ref)
+        inc_costs = self._rollout_cost(e, cands, b, bias, phi_ref, A)
         best_seq, best = cands[int(np.argmin(inc_costs))], float(inc_costs.min())
         states, costs = e[None, :], np.zeros(1)
         parents, moves = [], []
         push_cost, push_b = self.push_weight * (self.levels != 0), self.levels[:, None] * b
         proven, nodes = True, 0
         for k in range(H):
-            nxt = states @ self.A.T + bias
+            nxt = states @ A.T + bias
             child = (nxt[:, None, :] + push_b).reshape(-1, 4)   # (M * L, 4)
             c = ((costs[:, None] + push_cost).ravel()
                  + self._stage(child, phi_ref, kernel=False))
@@ -441,10 +442,9 @@ class SequenceBalancer(PulseBalancer):
             self.plan = None
             return None
         t0 = time.perf_counter()
-        if self.correction is None:
-            gain = bias = None
-        else:
-            gain, bias = self.correction.gain, self.correction.bias
-        self.plan, _ = self.search(e, gain, bias)
+        c = self.correction
+        lean = c is not None and c.lean is not None
+        self.plan, _ = self.search(e, *((None, None) if c is None else (c.gain, c.bias)),
+                                   c.stiffness if lean else None)
         self.plan_seconds.append(time.perf_counter() - t0)
         return int(self.plan[0])
