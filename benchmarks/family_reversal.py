@@ -1,4 +1,4 @@
-"""Family benchmark results split by whether the plant simulated can reverse its cart inside the band.
+"""The family benchmark split by whether the simulated plant can reverse its cart inside the band.
 
 Where one push's kick is so large that the pushes must alternate, the cart creeps at a speed
 the start fixes (``bench_cart_phase.py``), and reversing that creep takes two pushes of one sign;

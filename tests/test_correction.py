@@ -98,7 +98,8 @@ def test_lean_term_converges_to_the_plant_stiffness():
     with ``lean=(0, upright)`` the three-parameter RLS recovers all three, exactly on noise-free
     data; without it the prediction keeps the lean's error."""
     step = _model_step()
-    gain, bias, stiff, up = np.array([0.3, -0.2]), np.array([1e-3, -0.02]), np.array([0.0, 0.7]), 0.3
+    gain, bias = np.array([0.3, -0.2]), np.array([1e-3, -0.02])
+    stiff, up = np.array([0.0, 0.7]), 0.3
     corr = InputGainCorrection(step, 0, forgetting=0.95, lean=(0, up))
     plain = InputGainCorrection(step, 0, forgetting=0.95)
     rng = np.random.default_rng(3)
