@@ -91,8 +91,11 @@ def main(argv=None):
     n = len(rows)
     a = sum(r["nominal_model"] for r in rows)
     b = sum(r["true_model"] for r in rows)
+    src = Path(args.json).resolve()
+    shown = ("" if src == DEFAULT.resolve() else " --json " + (
+        str(src.relative_to(ROOT.parent)) if src.is_relative_to(ROOT.parent) else args.json))
     lines = [f"`python benchmarks/family_true_model.py --out DIR --plant {args.plant} --patterns="
-             f"{','.join(pats)}` ({time.perf_counter() - t0:.0f} s): the reachable mismatched "
+             f"{','.join(pats)}{shown}` ({time.perf_counter() - t0:.0f} s): the reachable mismatched "
              f"episodes of {args.plant} with these sign patterns (cart mass, pole mass, length), "
              f"controller on the nominal identified model (the family run) against one on the "
              f"simulated plant's own exact equations.", "",
