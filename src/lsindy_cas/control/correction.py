@@ -40,12 +40,16 @@ class InputGainCorrection:
         RLS forgetting factor in (0, 1].
     max_gain : float
         Bound on ``|gain|``.
+    lean : tuple, optional
+        ``(pole_index, upright)``: also fit ``stiffness`` on the sine of the pole's lean from
+        the upright (module docstring).  None: gain and offset only.
 
     Attributes
     ----------
-    theta : ndarray, shape (n_state, 2)
-        Per state component, the estimate ``[gain, bias]``.
-    cov : ndarray, shape (n_state, 2, 2)
+    theta : ndarray, shape (n_state, p)
+        Per state component, the estimate ``[gain, bias]`` (p = 2), with ``lean``
+        ``[gain, bias, stiffness]`` (p = 3).
+    cov : ndarray, shape (n_state, p, p)
         Per state component, the RLS covariance of ``theta``.
     """
 
@@ -115,7 +119,8 @@ class InputGainCorrection:
         Returns
         -------
         ndarray, shape (n_state,)
-            ``F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``.
+            ``F(x, u) + gain * (F(x, u) - F(x, 0)) + bias`` (``+ stiffness * sin(lean)`` with
+            ``lean``).
         """
         x = np.asarray(x, dtype=float)
         x_u, x_0 = self._responses(x, float(force))
@@ -135,7 +140,7 @@ class InputGainCorrection:
         x_u, x_0 = self._responses(x_prev, force)
         err = x - x_u
         lam = self.forgetting
-        # the n_state two-parameter RLS problems at once (batched matrix products)
+        # the n_state two- (three-, with lean) parameter RLS problems at once (batched products)
         cols = [x_u - x_0, np.ones(self.n_state)]
         if self.lean is not None:
             cols.append(np.full(self.n_state, self._sin_lean(x_prev)))
