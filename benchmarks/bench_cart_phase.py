@@ -42,7 +42,8 @@ from lsindy_cas import systems
 from lsindy_cas.control.upright import com_speed_step
 from lsindy_cas.control.viability import upright_jacobians
 from lsindy_cas.mpc import SwingUpMPC
-from lsindy_cas.paper.swingup import Plant, evaluate, identify_cart_pendulum, random_starts
+from lsindy_cas.paper.swingup import (Plant, evaluate, identify_cart_pendulum, in_band,
+                                      random_starts)
 
 DT, FORCE = 0.05, 10.0
 
@@ -126,9 +127,7 @@ def window_success(t, X, ends):
 
 def band_exits(t, X, t_from):
     """Times (s) after ``t_from`` at which the pole leaves the success band."""
-    from lsindy_cas.paper.swingup import ANGLE_TOL, RATE_TOL
-    from lsindy_cas.control.mpc import wrap_angle
-    good = (np.abs(wrap_angle(X[:, 1] - np.pi)) < ANGLE_TOL) & (np.abs(X[:, 3]) < RATE_TOL)
+    good = in_band(X)
     leave = np.flatnonzero(good[:-1] & ~good[1:]) + 1
     return [float(v) for v in t[leave] if v > t_from]
 

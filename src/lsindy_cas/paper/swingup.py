@@ -32,11 +32,19 @@ from ..control.mpc import wrap_angle
 from .plant import Plant, mismatched_cart_pendulum, scenario_plant  # noqa: F401 (importable here)
 from .swingup_cli import add_swingup_arguments, run_from_args  # noqa: F401 (importable here)
 
-__all__ = ["Episode", "evaluate", "identify_cart_pendulum", "random_starts", "run_episode",
+__all__ = ["Episode", "evaluate", "identify_cart_pendulum", "in_band", "random_starts",
+           "run_episode",
            "run_swingup", "scenario_stats", "summary_table"]
 
 ANGLE_TOL, RATE_TOL, WINDOW, T_END = 0.1, 0.5, 3.0, 10.0
 SCENARIOS = ("nominal", "mismatch", "noise")
+
+
+def in_band(X, *, upright=np.pi, pole=1):
+    """Per sample of ``X`` (n_samples, 4), whether the pole is in the success band
+    (``|angle - upright| < ANGLE_TOL`` and ``|rate| < RATE_TOL``)."""
+    return ((np.abs(wrap_angle(X[:, pole] - upright)) < ANGLE_TOL)
+            & (np.abs(X[:, 2 + pole]) < RATE_TOL))
 
 
 def evaluate(t, X, *, upright=np.pi, cart=0, pole=1, track_limit=2.0, t_end=None):
@@ -66,7 +74,7 @@ def evaluate(t, X, *, upright=np.pi, cart=0, pole=1, track_limit=2.0, t_end=None
         ``max |x|`` (m).
     """
     t_end = t[-1] if t_end is None else t_end
-    good = (np.abs(wrap_angle(X[:, pole] - upright)) < ANGLE_TOL) & (np.abs(X[:, 2 + pole]) < RATE_TOL)
+    good = in_band(X, upright=upright, pole=pole)
     track_used = float(np.max(np.abs(X[:, cart])))
     bad = np.flatnonzero(~good)
     if bad.size == 0:
