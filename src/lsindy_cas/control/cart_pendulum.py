@@ -30,6 +30,7 @@ import numpy as np
 from .._validate import check_choice, check_real, relative_energy
 from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
+from .coefficients import parametric_form
 from .sequence_balancer import SequenceBalancer
 from .track_guard import TrackGuard
 from .upright import find_upright, handover_side, step_kick, upright_kick
@@ -166,6 +167,10 @@ class SwingUpMPC(DiscreteInputMPC):
         of the pole's lean, :mod:`~lsindy_cas.control.correction`), used by the sequence
         balancer's predictions.  None: where the sequence balancer is chosen (not on the
         paper plant's pulse balancer).  Needs ``adapt`` (the default).
+    adapt_model : bool, optional
+        Whether the relaxed plan uses an online estimate of the model's own coefficients
+        (:mod:`~lsindy_cas.control.coefficients`; read from its Lagrangian).  None: where the
+        sequence balancer is chosen, if the model's equations can be rebuilt from its terms.
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -215,7 +220,8 @@ class SwingUpMPC(DiscreteInputMPC):
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
-                 balance=True, guard=True, handover=None, adapt_lean=None, **options):
+                 balance=True, guard=True, handover=None, adapt_lean=None, adapt_model=None,
+                 **options):
         coords = getattr(model, "coords_", None) or getattr(model, "coords", None)
         if coords is None or not hasattr(model, "ode"):
             raise TypeError("model must be a fitted cart-pendulum model with coords_ and ode().")
@@ -310,6 +316,14 @@ class SwingUpMPC(DiscreteInputMPC):
                     raise
                 w["energy"] = 0.0
         self.weights = w
+        self.adapt_model = check_choice("adapt_model", adapt_model, (None, False, True))
+        if sequence if adapt_model is None else adapt_model:
+            try:
+                options["coefficients"] = parametric_form(model, coords)[:2]
+            except ValueError:
+                if adapt_model:
+                    raise
+        self.adapt_model = "coefficients" in options
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)
         self._parts = (guard, balance, kind, balance_options, track_margin, handover,

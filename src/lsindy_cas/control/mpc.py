@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from .._validate import check_choice, check_int, check_real
+from .coefficients import CoefficientEstimator
 from .correction import InputGainCorrection
 from .lookahead import build_lookahead
 from .ocp import OCP
@@ -91,55 +92,46 @@ class DiscreteInputMPC:
         (counted in ``stats.n_inexact``); otherwise such a solve is a failure (fallback).
     inexact_tol : float
         Constraint violation (shooting defects in state units, bounds) up to which a capped
-        solve's iterate is applied.  A larger value trades recovery solves (the slow ones) for applying less consistent plans; the strict default keeps the
-        plans nearly dynamically consistent (the trade-off is measured in the README).
+        solve's iterate is applied (larger: fewer slow recoveries, less consistent plans).
     recover_after : int, optional
         After this many failed solves in a row the next solve is a recovery solve (fatrop or
         IPOPT) from the shifted plan; by default 1 with ``recovery="fatrop"`` or
         ``"ipopt"``, 3 with ``"continue"``.  After :attr:`RECOVERY_BACKOFF` failed recoveries
         in a row only every ``RECOVERY_BACKOFF``-th step recovers, warm SQP in between.
     recovery : {"fatrop", "ipopt", "continue"}, optional
-        What the solves after a failure start from: ``"continue"`` warm-starts the
-        next SQP solve from the failed iterate itself, shifted, so that the SQP carries on
-        converging over the following steps (each at most ``max_iter`` SQP iterations),
-        and an IPOPT recovery solve runs only after ``recover_after`` failures in a row,
-        from the last applied plan; ``"fatrop"`` and ``"ipopt"`` discard the failed iterate and
-        re-solve with that interior-point method from the shifted previous plan.  The default
-        is fatrop where CasADi has it, else IPOPT: fatrop exploits the stage structure and
-        reaches IPOPT's optimum in about a third of the time (issue 16: recovery solves
-        median 53 -> 17 ms CPU on a loaded machine); it runs under a watchdog
-        (:func:`~lsindy_cas.control.shooting.default_robust_solver`).  Either way a failed
-        step applies the shifted previous plan (a failed iterate is continued only if finite
-        and within 1 of feasibility).
+        After a failure: ``"continue"`` warm-starts the next SQP solve from the failed
+        iterate, shifted (an IPOPT recovery from the last applied plan only after
+        ``recover_after`` failures in a row); ``"fatrop"`` / ``"ipopt"`` discard it and re-solve
+        with that interior-point method from the shifted previous plan.  Default: fatrop where
+        CasADi has it (IPOPT's optimum in about a third of the time; under a watchdog,
+        :func:`~lsindy_cas.control.shooting.default_robust_solver`), else IPOPT.  A failed step
+        applies the shifted previous plan.
     cold : {"fatrop", "ipopt", "warm"}, optional
-        Solver of the first step of an episode, from a rolled-out guess: the warm solver
-        (``"warm"``: at most ``max_iter`` iterations, its iterate applied if finite,
-        as there is no previous plan to fall back on but the guess, and continued on the next
-        step), or fatrop or IPOPT with up to ``max(10 * max_iter, 300)`` iterations (the
-        default: as ``recovery``).
+        Solver of an episode's first step, from a rolled-out guess: the warm solver
+        (``"warm"``: at most ``max_iter`` iterations, its iterate applied if finite), or
+        fatrop or IPOPT with up to ``max(10 * max_iter, 300)`` iterations (default: as
+        ``recovery``).
     lookahead_penalty : casadi.Function, optional
         ``x -> scalar`` added to the cost of every state the lookahead enumerates.
     adapt : bool
-        Correct the lookahead's (and a subclass's own rule's) predictions online, offset-free
-        MPC against plant/model mismatch: :attr:`correction`, an
-        :class:`~lsindy_cas.control.correction.InputGainCorrection` that fits the one-step
-        prediction errors of the measured states as ``gain * (F(x, u) - F(x, 0)) + bias``;
-        the enumerated steps use ``F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``.
-    adapt_forgetting : float
-        RLS forgetting factor in (0, 1].
-    adapt_max_gain : float
-        Bound on ``|gain|``.
+        Correct the lookahead's (and a subclass's own rule's) predictions online against
+        plant/model mismatch (:attr:`correction`, an :class:`~lsindy_cas.control.correction.
+        InputGainCorrection`): ``F(x, u) + gain * (F(x, u) - F(x, 0)) + bias``.
+    adapt_forgetting, adapt_max_gain : float
+        RLS forgetting factor in (0, 1]; bound on ``|gain|``.
     adapt_plan : bool
         Whether the relaxed plan's dynamics use the correction's input gain as well: the
         NLP applies ``(1 + gain) * u`` with ``gain`` the estimate of the state component
         :attr:`plan_gain_index` (by default the actuated coordinate's velocity).
     solve_balanced : bool
-        Whether to solve the relaxed NLP also on steps whose level a subclass's own rule
-        decides (:class:`~lsindy_cas.mpc.SwingUpMPC`: the balancer near the upright), only to
-        keep the warm start.  By default (False) such a step costs only the rule: the plan is
-        shifted by one interval per step, to stay aligned in time, and the first solve after
-        the rule lets go warm-starts from it as usual (counted in ``stats.n_resumed``).
-        ``True`` is the behaviour before issue 16 (the step median was about twice as long).
+        Whether to solve the relaxed NLP also on steps a subclass's own rule decides (the
+        balancer), only to keep the warm start (the behaviour before issue 16).  By default
+        such a step costs only the rule, and the plan is shifted one interval per step
+        (``stats.n_resumed`` counts the solves that resume from it).
+    coefficients : (casadi.Function, array_like), optional
+        The ODE as a function of its coefficients, ``(x, u, p) -> xdot``, and their values:
+        the relaxed plan then uses :attr:`estimator`'s online estimate of them (and not
+        ``adapt_plan``'s gain; :mod:`~lsindy_cas.control.coefficients`).
     jit : bool
         Compile the NLP's functions to C with the system compiler (gcc) and run the solvers
         on the compiled code (:mod:`~lsindy_cas.control.compiled`): the same iterates, each
@@ -170,9 +162,11 @@ class DiscreteInputMPC:
                  max_iter=7, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
                  lookahead_penalty=None, recovery=None, cold=None,
                  recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5,
-                 adapt_plan=True, solve_balanced=False, jit=False):
+                 adapt_plan=True, solve_balanced=False, jit=False, coefficients=None):
+        param_ode, p0 = (None, None) if coefficients is None else coefficients
         self.ocp = ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt,
-                             horizon, state_lb, state_ub, input_weight, n_substeps, "force_set")
+                             horizon, state_lb, state_ub, input_weight, n_substeps, "force_set",
+                             param_ode, p0)
         self.solver = check_choice("solver", solver, SOLVERS)
         self.relaxation = check_choice("relaxation", relaxation, ("poc", "continuous"))
         self.rounding = check_choice("rounding", rounding, (*ROUNDINGS, "lookahead"))
@@ -203,6 +197,9 @@ class DiscreteInputMPC:
         self.correction = (InputGainCorrection(self.step_function, self.input_index,
                                                forgetting=forgetting, max_gain=max_gain)
                            if self.adapt else None)
+        #: online estimate of the model's coefficients for the plan (None: ``coefficients``)
+        self.estimator = None if coefficients is None else CoefficientEstimator(
+            param_ode, p0, dt, input_index=self.input_index, n_substeps=ocp.n_substeps)
         self._before_build()  # a subclass's own parts, checked before the heavy build
         self._lookahead = None
         if rounding == "lookahead":
@@ -224,7 +221,6 @@ class DiscreteInputMPC:
     def _before_build(self):
         """Hook: a subclass's own parts, once step and correction exist, before the NLP."""
 
-    # --- episode state ---------------------------------------------------------------
     def reset(self):
         """Forget the warm start, the rounding memory and the online correction (call between
         episodes).
@@ -240,6 +236,8 @@ class DiscreteInputMPC:
         self._last = None  # (measured state, applied force) of the previous step
         if self.correction is not None:
             self.correction.reset()
+        if self.estimator is not None:
+            self.estimator.reset()
 
     def _weights(self, c):
         """Relaxed level weights (n_levels,) of one stage's control vector."""
@@ -320,7 +318,6 @@ class DiscreteInputMPC:
             raise ValueError(f"x must be finite, got {x.tolist()}.")
         return x
 
-    # --- one control step ------------------------------------------------------------
     def __call__(self, x):
         """Solve from state ``x`` (shape (n_state,)) and return the force to apply (a step
         that a subclass's own rule decides returns its level, without a solve unless
@@ -335,6 +332,8 @@ class DiscreteInputMPC:
         x = self._check_state(x)
         if self.correction is not None and self._uses_correction and self._last is not None:
             self.correction.update(*self._last, x)
+        if self.estimator is not None and self._last is not None:
+            self.estimator.update(*self._last, x)
         index = self._own_level(x)
         if index is not None and not self.solve_balanced:
             return self._balanced_step(x, index, t_start, c_start)
@@ -408,8 +407,9 @@ class DiscreteInputMPC:
         raised, e.g. NaN in a function evaluation of a bad model)."""
         try:
             gain = self.correction.gain[self.plan_gain_index] if self.adapt_plan else 0.0
-            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, gain=gain,
-                                    ref=self.reference),
+            coef = None if self.estimator is None else self.estimator.coef
+            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, gain=0.0 if coef is not None
+                                    else gain, ref=self.reference, coef=coef),
                     self.nlp.last_status)
         except RuntimeError:
             return "failed", z0, lam_g0, lam_x0, -1, "exception"

@@ -119,6 +119,10 @@ class OCP:
         Classical RK4 steps per control interval (:attr:`step`).
     levels_name : str
         Name of ``levels`` in error messages (the caller's argument name).
+    param_ode, param_values : casadi.Function and array_like, optional
+        The same ODE as a function of its coefficients, ``(x, u, p) -> xdot``, and their
+        values: the relaxed NLP then takes ``p`` as a parameter (:attr:`param_step`;
+        ``adapt_model``, :mod:`~lsindy_cas.control.coefficients`).
     """
 
     ode: ca.Function
@@ -133,6 +137,8 @@ class OCP:
     input_weight: float = 1e-3
     n_substeps: int = 1
     levels_name: str = field(default="levels", repr=False)
+    param_ode: ca.Function = None
+    param_values: np.ndarray = None
 
     def __post_init__(self):
         if not isinstance(self.ode, ca.Function):
@@ -151,6 +157,10 @@ class OCP:
                                 f"{type(getattr(self, name)).__name__}.")
         put("state_lb", _bounds("state_lb", self.state_lb, self.n_state, -np.inf))
         put("state_ub", _bounds("state_ub", self.state_ub, self.n_state, np.inf))
+        if self.param_ode is not None:
+            put("param_values", np.asarray(self.param_values, dtype=float).ravel())
+            if self.param_ode.size1_in(2) != self.param_values.size:
+                raise ValueError("param_values must have one value per coefficient of param_ode.")
 
     @property
     def n_state(self):
@@ -171,6 +181,16 @@ class OCP:
     def step(self):
         """Discrete map ``F(x, u) -> x_next`` over one interval (:func:`rk4_step`)."""
         return rk4_step(self.ode, self.n_state, self.n_input, self.dt, self.n_substeps)
+
+    @cached_property
+    def param_step(self):
+        """``F(x, u, p) -> x_next`` over one interval (None without :attr:`param_ode`)."""
+        if self.param_ode is None:
+            return None
+        x, u = ca.SX.sym("x", self.n_state), ca.SX.sym("u", self.n_input)
+        p = ca.SX.sym("p", self.param_values.size)
+        nxt = rk4_expr(lambda xk, uk: self.param_ode(xk, uk, p), x, u, self.dt, self.n_substeps)
+        return ca.Function("Fp", [x, u, p], [nxt], ["x", "u", "p"], ["x_next"])
 
     def full_input(self, force):
         """Model input ``u`` (n_input,) with ``force`` on the actuated entry, zeros elsewhere."""

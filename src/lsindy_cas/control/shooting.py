@@ -127,7 +127,10 @@ class MultipleShootingNLP:
         gain = sym.sym("gain")
         # the state the costs are measured from (0: the residuals as given; e.g. a cart target)
         ref = sym.sym("ref", n_state)
-        p = ca.vertcat(x_init, gain, ref)
+        # the model's coefficients (adapt_model: the online estimate), if the OCP has them
+        coef = sym.sym("coef", 0 if ocp.param_ode is None else ocp.param_values.size)
+        self.coef0 = None if ocp.param_ode is None else ocp.param_values
+        p = ca.vertcat(x_init, gain, ref, *([coef] if coef.numel() else []))
         cs = [sym.sym(f"c{k}", n_c) for k in range(horizon)]
         # x_0 is given, so stage 0 has no slack: ss[k] softens the bounds of x_k, k >= 1
         ss = [sym.sym(f"s{k}", n_s if k > 0 else 0) for k in range(horizon)]
@@ -158,7 +161,8 @@ class MultipleShootingNLP:
                     penalty = (c[0] / scale) ** 2
                 u = ocp.full_input((1 + gain) * force)
                 z += [c, ss[k], xs[k + 1]]
-                gap = xs[k + 1] - step(xs[k], u)  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
+                nxt = step(xs[k], u) if self.coef0 is None else ocp.param_step(xs[k], u, coef)
+                gap = xs[k + 1] - nxt  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
                 stage_g.append(-gap if solver.startswith("sqp") else gap)
                 lbg.extend([0.0] * n_state)
                 ubg.extend([0.0] * n_state)
@@ -303,7 +307,7 @@ class MultipleShootingNLP:
                 ls[cur] = lam_g[nxt[: cur.size]]
         return zs, ls
 
-    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0, ref=None):
+    def solve(self, x_init, z0, lam_g0, lam_x0, kind="warm", gain=0.0, ref=None, coef=None):
         """Solve from state ``x_init`` with a warm start.
 
         Parameters
@@ -318,6 +322,8 @@ class MultipleShootingNLP:
             online correction's estimate, 0 for the model as it is).
         ref : ndarray, shape (n_state,), optional
             The costs are those of ``x - ref`` (default zeros: the residuals as given).
+        coef : ndarray, optional
+            The model's coefficients, where the OCP has them (default its own).
 
         Returns
         -------
@@ -329,7 +335,7 @@ class MultipleShootingNLP:
         iters : int
         """
         solver = self.solvers[kind]
-        p = self.parameters(x_init, gain, ref)  # the NLP parameters: state, gain, ref
+        p = self.parameters(x_init, gain, ref, coef)  # state, gain, ref (, coefficients)
         if self._plugin[kind] == "fatrop" and not self._usable_guess(z0, p):
             self.last_status, self.last_violation = "unusable_guess", np.inf
             return "failed", z0, lam_g0, lam_x0, 0
@@ -382,12 +388,16 @@ class MultipleShootingNLP:
             lam_g = self._flip_gaps(lam_g)
         return outcome, z, lam_g, np.asarray(res["lam_x"]).ravel(), iters
 
-    def parameters(self, x_init, gain=0.0, ref=None):
-        """The NLP's parameter vector: the initial state, the input-gain error and the state
-        the costs are measured from (``ref``, default zeros)."""
+    def parameters(self, x_init, gain=0.0, ref=None, coef=None):
+        """The NLP's parameter vector: the initial state, the input-gain error, the state
+        the costs are measured from (``ref``, default zeros) and, if the OCP has them, the
+        model's coefficients (``coef``, default the OCP's)."""
         x_init = np.asarray(x_init, dtype=float).ravel()
         ref = np.zeros(x_init.size) if ref is None else np.asarray(ref, dtype=float).ravel()
-        return np.concatenate([x_init, [float(gain)], ref])
+        if self.coef0 is None:
+            return np.concatenate([x_init, [float(gain)], ref])
+        coef = self.coef0 if coef is None else np.asarray(coef, dtype=float).ravel()
+        return np.concatenate([x_init, [float(gain)], ref, coef])
 
     def _usable_guess(self, z, p):
         """Whether ``z`` is a guess fatrop can start from: the cost and constraints are finite
