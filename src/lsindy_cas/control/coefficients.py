@@ -12,10 +12,12 @@ lost by 0.6/0.2/1.0 and 0.7/0.4/0.8 succeeded (6 of 6, issue 16).
 :func:`parametric_form` rebuilds the model's ODE as a function of its coefficient vector
 (:class:`~lsindy_cas.mechanics.parametric.ParametricDynamics`, checked against ``model.ode()``);
 :class:`CoefficientEstimator` updates that vector at every control step from the measured
-transition, an extended Kalman filter on constant parameters: with the RK4 step
-``x+ = F(x, u; p)`` and its exact Jacobian ``J = dF/dp`` (CasADi),
+transition, an iterated extended Kalman filter on constant parameters: with the RK4 step
+``x+ = F(x, u; p)`` and its exact Jacobian ``J = dF/dp`` (CasADi), from the estimate ``p^``,
 
-    K = P J' (J P J' + R)^-1,   p <- p + K (x+_measured - F(x, u; p)),   P <- (I - K J) P,
+    K_i = P J_i' (J_i P J_i' + R)^-1,   p_i+1 = p^ + K_i (x+_measured - F(x, u; p_i) - J_i (p^ - p_i)),
+
+three times (``J_i`` at ``p_i``, ``p_0 = p^``), then ``P <- (I - K J) P``,
 
 from the prior ``p0`` (the identified coefficients) with standard deviations ``prior * |p0|``,
 ``R`` the squared one-step noise of positions and velocities; each coefficient stays within
@@ -115,7 +117,12 @@ class CoefficientEstimator:
         Each coefficient stays within ``max_change * |p0|`` of ``p0``.
     """
 
-    def __init__(self, ode, p0, dt, *, input_index, n_substeps=1, prior=0.2, noise=(1e-3, 1e-2),
+    #: Gauss-Newton iterations of each measurement update (the iterated EKF): on noise-free
+    #: transitions of a plant 10-33 % off, 3 reached the plant's coefficients to 3e-4 after
+    #: 20 transitions where the plain EKF (1) was 6e-3 off (its early linearisation lingers)
+    ITERATIONS = 3
+
+    def __init__(self, ode, p0, dt, *, input_index, n_substeps=1, prior=0.5, noise=(1e-3, 1e-2),
                  max_change=0.5):
         self.p0 = np.asarray(p0, dtype=float).ravel()
         self.prior = check_real("prior", prior, positive=True)
@@ -142,19 +149,23 @@ class CoefficientEstimator:
         return np.sqrt(np.diag(self.cov))
 
     def update(self, x_prev, force, x):
-        """One filter step on the measured transition ``x_prev --force--> x``; a transition
-        the model cannot evaluate (non-finite) is skipped."""
+        """One filter step on the measured transition ``x_prev --force--> x`` (the measurement
+        update iterated :attr:`ITERATIONS` times, re-linearised at each new estimate); a
+        transition the model cannot evaluate (non-finite) is skipped."""
         u = np.zeros(self.n_input)
         u[self.input_index] = force
-        pred, J = self._fj(x_prev, u, self.coef)
-        r = np.asarray(x, dtype=float) - pred.ravel()
-        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
-            return
-        PJ = self.cov @ J.T
-        K = np.linalg.solve(J @ PJ + self._R, PJ.T).T
-        self.coef = self.coef + K @ r
-        self.cov = self.cov - K @ PJ.T
-        self.cov = (self.cov + self.cov.T) / 2
+        x = np.asarray(x, dtype=float).ravel()
+        p_hat, P, p = self.coef, self.cov, self.coef
+        for _ in range(self.ITERATIONS):
+            pred, J = self._fj(x_prev, u, p)
+            r = x - pred.ravel()
+            if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
+                return
+            PJ = P @ J.T
+            K = np.linalg.solve(J @ PJ + self._R, PJ.T).T
+            p = p_hat + K @ (r - J @ (p_hat - p))
         span = self.max_change * np.abs(self.p0)
-        np.clip(self.coef, self.p0 - span, self.p0 + span, out=self.coef)
+        self.coef = np.clip(p, self.p0 - span, self.p0 + span)
+        cov = P - K @ PJ.T
+        self.cov = (cov + cov.T) / 2
         self.n_updates += 1
