@@ -9,22 +9,24 @@ same online gain/offset correction, reference lean and hand-over rule as the pul
 
 Cost of a sequence (every stage cost is non-negative)::
 
-    sum_k  violation_weight * band_excess(z_k)^2 + wall_weight * wall_excess(z_k)^2
-           + lean_weight * dt * (phi_k - phi_ref)^2
+    sum_k  violation_weight * band_excess(z_k)^2 + lean_weight * dt * (phi_k - phi_ref)^2
            + dt * z_k' Q z_k + centre_weight * dt * p_k^2 + push_weight * [u_k != 0]
     + mode_weight * s_N^2 + z_N' P z_N + centre_weight * (p_N, v0_N)' P_c (p_N, v0_N)
     + escape_weight * violation_weight * max(0, phi*_N - angle_band)^2
 
 with the band excess of the pole angle, pole rate and cart position as in :class:`PulseBalancer`
-(the cart's excess weighted ``track_weight`` times), the wall excess that of pole angle and rate
-beyond the success band itself less ``wall_margin``, ``s`` the unstable mode, ``Q`` the
+(the cart's excess weighted ``track_weight`` times), ``s`` the unstable mode, ``Q`` the
 diagonal ``state_weights`` (plus ``cart_weight`` on the cart), ``P`` its DARE value on the
 linearisation, and ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below).
 
-Search: breadth-first branch and bound from the incumbent (the previous plan shifted, or
-waiting throughout); a partial sequence whose accumulated cost reaches the incumbent's is pruned
-(the remaining costs are non-negative).  Beyond ``max_frontier`` survivors per depth the search
-keeps the cheapest (a beam; :attr:`proven` False), else the plan is optimal over all sequences.
+Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
+by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
+extended by every level, and a partial sequence whose accumulated cost already reaches the
+incumbent's is pruned (the remaining costs are non-negative, so it cannot win).  If more than
+``max_frontier`` partial sequences survive a depth, the ``max_frontier`` with the least
+accumulated cost plus the current unstable-mode term are kept (a beam); the plan is then not
+proven optimal and :attr:`proven` is False.  Otherwise the returned first level is that of an
+optimal sequence over all ``len(levels)^horizon``.
 
 The cart: pushes move the cart speed and the pole rate in a fixed ratio
 (``ratio = B_xdot / B_thetadot``), so ``v0 = x_dot - ratio * theta_dot`` and
@@ -63,8 +65,9 @@ with the pushes only.  Where gravity cannot turn the pole back inside the succes
 0.1 < kick - 0.5``), pushes strictly alternate and the cart's mean speed is set by the time spent
 between them, not by a lean: the stage cost gets ``speed_weight * dt * (w + x / speed_time)^2``.
 
-The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` (``kick``: the model's pole-rate
-change over one push at the upright): one narrower than a kick makes every reversal a violation.
+The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
+rate change over one push of the largest force from rest at the upright: a band narrower than
+one kick would make every reversing push a violation.
 """
 
 from __future__ import annotations
@@ -91,14 +94,12 @@ class SequenceBalancer(PulseBalancer):
     horizon : int
         Planned intervals ``N`` (1.4 s sees a hover's exit; 16 lost 9 of 180 more, stop 30).
     max_frontier : int
-        Most partial sequences kept per depth (beyond it a beam, not proven optimal).
+        Most partial sequences kept per depth (beyond it the search is a beam, not proven).
     rate_band : float, optional
-        Band of the predicted pole rate (rad/s); default from the model's kick (module text).
+        Band of the predicted pole rate (rad/s); by default from the model's kick (module
+        docstring).
     violation_weight : float
         Weight of the squared band excesses against the other terms.
-    wall_weight, wall_margin : float, (float, float)
-        Weight of the squared excess of pole angle and rate over the success band (0.1 rad,
-        0.5 rad/s) less ``wall_margin``: steep where the episode is lost, not just costly.
     cart_weight : float
         Extra weight of the cart position's square in the stage cost.
     state_weights : (float, float, float, float)
@@ -106,26 +107,32 @@ class SequenceBalancer(PulseBalancer):
         with ``input_weight`` (per N^2 s) they give the DARE value used as terminal cost.
     terminal_weight : float
         Factor on the DARE value at the horizon's end.
-    centre_weight, centre_frequency : float
-        Weight of the cart's return to the centre (module docstring: the slow subsystem's LQR
-        value), and that design's closed-loop frequency (rad/s; slower: a smaller lean).
+    centre_weight : float
+        Weight of the cart's return to the centre (module docstring): the LQR value of the
+        slow subsystem ``(p, v0)`` is added to the terminal cost, its state cost ``p^2`` to
+        the stage cost.
+    centre_frequency : float
+        Closed-loop natural frequency (rad/s) of that LQR design, i.e. how fast the cart is
+        to return (a slower return needs a smaller lean).
     lean_weight : float
         Weight of the lean-reference term (small: the centring value returns the cart).
     escape_weight : float, optional
         Factor on the terminal escape penalty (module docstring); None: ``ESCAPE_WEIGHT`` if
         :attr:`turnaround` is False, else 0 (off).
     viability : bool
-        Penalise predicted pole states outside the pole's viability kernel held with a margin
-        (:mod:`lsindy_cas.control.viability`, on the model's upright linearisation).
+        Penalise predicted pole states outside the pole's viability kernel
+        (:mod:`lsindy_cas.control.viability`, built from the model's upright linearisation),
+        held with a margin (module docstring, "viability").
     viability_weight : float
         Factor (times ``violation_weight``) on the squared kernel excess.
-    viability_margin, viability_stage_margin : float
-        The margin asked for at the plan's end and at every predicted state, as a share of
-        the largest margin the kernel allows.
+    viability_margin : float
+        The margin asked for, as a share of the largest margin the kernel allows.
     viability_gains : sequence of float
         Input-gain factors the kernel must hold for (robust kernel); default the model's own.
     viability_stage : float
         Factor on the kernel term at every predicted state (0: the plan's end only).
+    viability_stage_margin : float
+        The margin asked for at every predicted state, as a share of the largest one.
     viability_cart : bool
         Fade the kernel term as the cart needs the lean to stop (:meth:`cart_urgency`).
     speed_weight, speed_time : float
@@ -167,7 +174,6 @@ class SequenceBalancer(PulseBalancer):
 
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=28, max_frontier=500, rate_band=None, violation_weight=1e4,
-                 wall_weight=1e6, wall_margin=(0.005, 0.01),
                  cart_weight=0.0, state_weights=(1.0, 10.0, 0.1, 0.01), input_weight=1e-4,
                  terminal_weight=1.0, lean_weight=1e-6, centre_weight=10.0, centre_frequency=0.5,
                  escape_weight=None, viability=True, viability_weight=1.0,
@@ -177,9 +183,6 @@ class SequenceBalancer(PulseBalancer):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
-        self.wall_weight = check_real("wall_weight", wall_weight, nonnegative=True)
-        self._wall = np.asarray(BAND, dtype=float) - [check_real("wall_margin", m, nonnegative=True)
-                                                      for m in wall_margin]
         self.cart_weight = check_real("cart_weight", cart_weight, nonnegative=True)
         if rate_band is not None:
             rate_band = check_real("rate_band", rate_band, positive=True)
@@ -281,9 +284,6 @@ class SequenceBalancer(PulseBalancer):
         lean = z[:, self.ip] - phi_ref
         cost = ((over * over) @ self._band_w + ((z @ self.Q) * z).sum(axis=1)
                 + self._lean_dt * lean * lean)
-        if self.wall_weight:
-            wall = np.maximum(np.abs(comp[:, :2]) - self._wall, 0.0)
-            cost += self.wall_weight * (wall * wall).sum(axis=1)
         if kernel and self.viability_stage > 0.0:
             cost += self.viability_stage * self._viability(z, self._stage_target)
         return cost
