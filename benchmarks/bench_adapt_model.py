@@ -157,8 +157,9 @@ def main(argv=None):
     else:
         cells = [run_cell(*job) for job in jobs]
     seconds = time.perf_counter() - t0
-    lines = [f"`python benchmarks/bench_adapt_model.py --out DIR --plants {','.join(map(str, plants))}"
-             f" --scenarios {','.join(scenarios)} --starts {args.starts} --models {args.models}`"
+    lines = [f"`python benchmarks/bench_adapt_model.py --out DIR --plants "
+             f"{','.join(map(str, plants))} --scenarios {','.join(scenarios)} "
+             f"--starts {args.starts} --models {args.models}`"
              f" ({seconds:.0f} s, {args.workers} worker(s)); noise std {args.noise:g}.", "",
              "| plant mc/mp/L | scenario | adapt_model off | on | reachable: off | on | gained | "
              "lost | coefficient error: prior -> end (median) | step p99 off / on (ms) |",

@@ -136,7 +136,7 @@ def test_estimator_stays_within_max_change_and_skips_non_finite():
     with pytest.raises(ValueError):
         CoefficientEstimator(ode, p0, DT, input_index=0, prior=0.0)
     with pytest.raises(ValueError):
-        CoefficientEstimator(ode, p0, DT, input_index=0, noise=(1e-3, -1.0))
+        CoefficientEstimator(ode, p0, DT, input_index=0, noise=-1.0)
 
 
 def test_ocp_param_step_at_the_plant_coefficients_is_the_plant_step():
