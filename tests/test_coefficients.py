@@ -156,12 +156,13 @@ def test_ocp_param_step_at_the_plant_coefficients_is_the_plant_step():
 
 
 def test_adapt_model_defaults_and_bad_values(shared_mpc):
-    # on where the sequence balancer is chosen, off on the paper plant's pulse balancer
-    assert shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}).adapt_model is True
-    assert shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}).estimator is not None
-    assert shared_mpc().adapt_model is False
-    assert shared_mpc().estimator is None
-    assert shared_mpc().nlp.coef0 is None
+    # off by default (the paper plant's pulse balancer and the sequence balancer's plants)
+    for plant in ({}, {"mc": 0.8, "mp": 0.2, "L": 0.7}):
+        assert shared_mpc(plant).adapt_model is False
+        assert shared_mpc(plant).estimator is None
+        assert shared_mpc(plant).nlp.coef0 is None
+    on = shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}, adapt_model=True)
+    assert on.adapt_model is True and on.estimator is not None
     from lsindy_cas.mpc import SwingUpMPC
     with pytest.raises(ValueError, match="adapt_model"):
         SwingUpMPC(systems.cart_pendulum(), adapt_model="yes")
@@ -175,7 +176,6 @@ def test_adapt_model_defaults_and_bad_values(shared_mpc):
 
     with pytest.raises(ValueError, match="no Lagrangian"):
         SwingUpMPC(NoLagrangian(), adapt_model=True)
-    assert SwingUpMPC(NoLagrangian(), adapt_model=None, balance=False).adapt_model is False
 
 
 def _mismatched_episode(adapt_model):
