@@ -112,12 +112,12 @@ def classify(ep, kernel):
 
 
 def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights=None,
-             handover=None):
+             handover=None, adapt_model=None):
     """Episodes of one controller on one plant and scenario; returns a JSON-ready summary
     (``weights``: the swing-up NLP's cost weights, :attr:`SwingUpMPC.default_weights`;
     ``handover``: :class:`SwingUpMPC`'s, None for its default)."""
     ctrl = SwingUpMPC(model, dt=DT, balance=balance, guard=guard, weights=weights,
-                      handover=handover)
+                      handover=handover, adapt_model=adapt_model)
     rng = np.random.default_rng(seed)
     p = system.params
     rows, plan_ms = [], []
@@ -237,7 +237,8 @@ def figure(report, path):
     plt.close(fig)
 
 
-def run_plant(i, starts, models, balancers, seed, guard=True, weights=None, handover=None):
+def run_plant(i, starts, models, balancers, seed, guard=True, weights=None, handover=None,
+              adapt_model=None):
     """Identify plant ``i`` and run every cell on it; returns (row, table lines)."""
     mc, mp, L = PLANTS[i]
     system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
@@ -260,7 +261,7 @@ def run_plant(i, starts, models, balancers, seed, guard=True, weights=None, hand
             for scen in ("nominal", "mismatch"):
                 res[scen] = run_cell(model, system, starts, scen, BALANCERS[bname],
                                      [seed, i, scen == "mismatch"], guard, weights,
-                                     handover)
+                                     handover, adapt_model)
                 row["cells"][f"{mname}/{bname}/{scen}"] = res[scen]
             n, m = res["nominal"], res["mismatch"]
             plan = [c["plan_ms_p99"] for c in (n, m) if c["plan_ms_p99"] is not None]
@@ -297,6 +298,9 @@ def main(argv=None):
                     help="SwingUpMPC(handover=) in m for every plant, which needs the sequence "
                          "balancer on each (default: the controller's "
                          "own, 0.6 m where the balancing pushes must alternate, else 0)")
+    ap.add_argument("--adapt-model", action="store_true",
+                    help="SwingUpMPC(adapt_model=True): the swing-up plan on an online estimate "
+                         "of the model's coefficients")
     args = ap.parse_args(argv)
     if args.handover is not None and not 0 <= args.handover < 1.75:
         ap.error("--handover must be in [0, 1.75) m (track limit 2 m, margin 0.25 m)")
@@ -329,14 +333,14 @@ def main(argv=None):
     starts = random_starts(starts_n, args.seed)
     report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE,
               "guard": not args.no_guard, "weights": weights, "handover": args.handover,
-              "plants": []}
+              "adapt_model": args.adapt_model, "plants": []}
     t_all = time.perf_counter()
     print("| mc | mp | L | kick | worst mismatch kick (share proven unreachable) | cell | nominal |"
           " mismatch | nominal, reachable | mismatch, reachable | median t_up (s) | "
           "max abs x (m) | step p99 (ms) | plan p99 (ms) | failures nominal / mismatch |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    jobs = [(i, starts, models, balancers, args.seed, not args.no_guard, weights, args.handover)
-            for i in idx]
+    jobs = [(i, starts, models, balancers, args.seed, not args.no_guard, weights, args.handover,
+             args.adapt_model or None) for i in idx]
     if args.workers == 1:
         results = (run_plant(*job) for job in jobs)
     else:

@@ -407,10 +407,10 @@ class DiscreteInputMPC:
         raised, e.g. NaN in a function evaluation of a bad model)."""
         try:
             gain = self.correction.gain[self.plan_gain_index] if self.adapt_plan else 0.0
-            coef = None if self.estimator is None else self.estimator.coef
-            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, gain=0.0 if coef is not None
-                                    else gain, ref=self.reference, coef=coef),
-                    self.nlp.last_status)
+            # with the coefficients estimated, they carry the input's effect (gain 0)
+            extra = {} if self.estimator is None else {"coef": self.estimator.coef, "gain": 0.0}
+            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, **{"kind": kind, "gain": gain,
+                                    "ref": self.reference, **extra}), self.nlp.last_status)
         except RuntimeError:
             return "failed", z0, lam_g0, lam_x0, -1, "exception"
 
