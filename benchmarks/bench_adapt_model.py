@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _cli import out_folder  # noqa: E402
 from bench_family import DT, PLANTS, plant_kernel  # noqa: E402
 
 from lsindy_cas import systems  # noqa: E402
@@ -142,11 +143,7 @@ def main(argv=None):
         ap.error(f"--noise must be >= 0, got {args.noise}")
     if args.quick:
         plants, scenarios, args.starts = [4], ["mismatch"], 3
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        ap.error(f"--out {out}: {e.strerror}")
+    out = out_folder(ap, args.out)
     t0 = time.perf_counter()
     jobs = [(i, s, args.starts, args.seed, args.noise, args.models)
             for i in plants for s in scenarios]

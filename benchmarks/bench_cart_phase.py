@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -44,6 +45,9 @@ from lsindy_cas.control.viability import upright_jacobians
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import (Plant, evaluate, identify_cart_pendulum, in_band,
                                       random_starts)
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' helpers
+from _cli import out_folder  # noqa: E402
 
 DT, FORCE = 0.05, 10.0
 
@@ -162,11 +166,7 @@ def main(argv=None):
     if not (np.isfinite(args.seconds) and args.seconds >= 10.0):
         ap.error(f"--seconds must be >= 10, got {args.seconds}")
     ends = [10.0 * k for k in range(1, int(args.seconds // 10) + 1)]
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        ap.error(f"--out {out}: {e.strerror}")
+    out = out_folder(ap, args.out)
     t0 = time.perf_counter()
     system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
     model = system if args.model == "exact" else identify_cart_pendulum(system)[0]

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -32,6 +33,9 @@ from lsindy_cas import systems
 from lsindy_cas.control.ocp import rk4_step
 from lsindy_cas.control.sequence_balancer import SequenceBalancer
 from lsindy_cas.control.upright import reversal_in_band
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' helpers
+from _cli import out_folder  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent
 DEFAULT = ROOT / "results" / "family_60starts.json"
@@ -60,11 +64,7 @@ def main(argv=None):
         _ = [c["episodes_detail"][0]["factors"] for p in plants for c in p["cells"].values()]
     except (OSError, ValueError, KeyError, IndexError, TypeError) as e:
         ap.error(f"--json {args.json}: not a bench_family.py result with episodes ({e})")
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        ap.error(f"--out {out}: {e.strerror}")
+    out = out_folder(ap, args.out)
     t0 = time.perf_counter()
     rows, totals = [], {}
     for p in plants:

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -36,6 +37,9 @@ from lsindy_cas import systems
 from lsindy_cas.control.coefficients import parametric_form
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant, random_starts, run_episode
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' helpers
+from _cli import out_folder  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent
 DEFAULT = ROOT / "results" / "family_60starts.json"
@@ -96,11 +100,7 @@ def main(argv=None):
         ap.error(f"--json {args.json}: not a bench_family.py result ({e})")
     if not cells:
         ap.error(f"--plant {args.plant}: no mismatch cell for it in {args.json}")
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        ap.error(f"--out {out}: {e.strerror}")
+    out = out_folder(ap, args.out)
     t0 = time.perf_counter()
     episodes = cells[0]["episodes_detail"]
     starts = random_starts(len(episodes), seed)
