@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _cli import out_folder  # noqa: E402
-from bench_family import DT, PLANTS, plant_kernel  # noqa: E402
+from bench_family import DT, PLANTS, physical, plant_kernel  # noqa: E402
 
 from lsindy_cas import systems  # noqa: E402
 from lsindy_cas.control.coefficients import parametric_form  # noqa: E402
@@ -42,13 +42,6 @@ from lsindy_cas.paper.swingup import (Plant, identify_cart_pendulum, random_star
                                       run_episode)
 
 SCENARIOS = ("nominal", "mismatch", "noise")
-G = 9.81
-
-
-def physical(mc, mp, L):
-    """The cart-pendulum's Lagrangian coefficients by term (hand-derived, DESIGN.md)."""
-    return {"x_dot**2": (mc + mp) / 2, "theta_dot**2": mp * L ** 2 / 2,
-            "theta_dot*x_dot*cos(theta)": mp * L, "cos(theta)": mp * G * L}
 
 
 def run_cell(i, scenario, n_starts, seed, noise, model_kind):

@@ -56,6 +56,14 @@ BALANCERS = {"auto": True, "pulse": {"method": "pulse"}, "sequence": {"method": 
 BAND_WIDTH = 1.0  # the success band |theta_dot| < 0.5 rad/s is 1 rad/s wide
 
 
+def physical(mc, mp, L, g=9.81):
+    """The cart-pendulum's Lagrangian coefficients by term, hand-derived (DESIGN.md convention):
+    L = (m_c + m_p)/2 x_dot^2 + m_p L^2/2 theta_dot^2 + m_p L x_dot theta_dot cos(theta)
+    + m_p g L cos(theta)."""
+    return {"x_dot**2": (mc + mp) / 2, "theta_dot**2": mp * L ** 2 / 2,
+            "theta_dot*x_dot*cos(theta)": mp * L, "cos(theta)": mp * g * L}
+
+
 def kick(mc, L):
     """Pole-rate change (rad/s) of one push at rest upright, to first order: F dt / (m_c L)."""
     return FORCE * DT / (mc * L)

@@ -40,6 +40,7 @@ from lsindy_cas.paper.swingup import Plant, random_starts, run_episode
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' helpers
 from _cli import out_folder  # noqa: E402
+from bench_family import physical  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent
 DEFAULT = ROOT / "results" / "family_60starts.json"
@@ -52,12 +53,10 @@ def pattern(factors):
 
 def plan_only(plant, f):
     """The nominal model's controller whose relaxed NLP runs on the plant's own coefficients
-    (its Lagrangian's, hand-derived: (m_c + m_p)/2, m_p L^2/2, m_p L, m_p g L)."""
+    (its Lagrangian's, hand-derived: ``bench_family.physical``)."""
     nominal = systems.cart_pendulum(mc=plant[0], mp=plant[1], L=plant[2])
     ctrl = SwingUpMPC(nominal, dt=DT, adapt_model=True)
-    mc, mp, L = plant[0] * f[0], plant[1] * f[1], plant[2] * f[2]
-    own = {"x_dot**2": (mc + mp) / 2, "theta_dot**2": mp * L ** 2 / 2,
-           "theta_dot*x_dot*cos(theta)": mp * L, "cos(theta)": mp * 9.81 * L}
+    own = physical(plant[0] * f[0], plant[1] * f[1], plant[2] * f[2])
     names = parametric_form(nominal, ["x", "theta"])[2]
     coef = np.array([own[n] for n in names])
     est = ctrl.estimator

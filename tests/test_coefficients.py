@@ -102,7 +102,7 @@ def test_estimator_converges_to_the_plant_coefficients():
     nominal = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
     true = systems.cart_pendulum(mc=0.54, mp=0.22, L=1.1)
     ode, p0, names = parametric_form(nominal, ["x", "theta"])
-    est = CoefficientEstimator(ode, p0, DT, input_index=0)
+    est = CoefficientEstimator(rk4_step(ode, 4, 2, DT, 1), p0, input_index=0)
     true_step = rk4_step(true.ode(), 4, 2, DT, 1)  # the same RK4 map: no discretisation gap
     expected = np.array([_physical(0.54, 0.22, 1.1)[n] for n in names])
     errors = {}
@@ -123,7 +123,7 @@ def test_estimator_stays_within_max_change_and_skips_non_finite():
     nominal = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
     true = systems.cart_pendulum(mc=0.6, mp=0.4, L=1.0)  # m_p L^2 twice the prior's
     ode, p0, names = parametric_form(nominal, ["x", "theta"])
-    est = CoefficientEstimator(ode, p0, DT, input_index=0, max_change=0.25)
+    est = CoefficientEstimator(rk4_step(ode, 4, 2, DT, 1), p0, input_index=0, max_change=0.25)
     true_step = rk4_step(true.ode(), 4, 2, DT, 1)
     for x, force, nxt in _transitions(true_step, 40, 1):
         est.update(x, force, nxt)
@@ -134,9 +134,9 @@ def test_estimator_stays_within_max_change_and_skips_non_finite():
     np.testing.assert_array_equal(est.coef, before)
     assert est.n_updates == n
     with pytest.raises(ValueError):
-        CoefficientEstimator(ode, p0, DT, input_index=0, prior=0.0)
+        CoefficientEstimator(rk4_step(ode, 4, 2, DT, 1), p0, input_index=0, prior=0.0)
     with pytest.raises(ValueError):
-        CoefficientEstimator(ode, p0, DT, input_index=0, noise=-1.0)
+        CoefficientEstimator(rk4_step(ode, 4, 2, DT, 1), p0, input_index=0, noise=-1.0)
 
 
 def test_ocp_param_step_at_the_plant_coefficients_is_the_plant_step():

@@ -6,8 +6,9 @@ differs in those coefficients only (mass, inertia, coupling, gravity moment).  T
 correction of :mod:`.correction` fits the one-step prediction errors with a few generic terms
 (input gain, offset, the lean's stiffness), which serve the balancer's linearisation near the
 upright but not the swing-up's nonlinear plan: re-run with the plant's own equations in the
-relaxed NLP only (the balancer and its correction unchanged), every mismatched family episode
-lost by 0.6/0.2/1.0 and 0.7/0.4/0.8 succeeded (6 of 6, issue 16).
+relaxed NLP only (the balancer and its correction unchanged), the mismatched family episodes
+of 0.6/0.2/1.0 and 0.7/0.4/0.8 whose patterns lost most went 5 -> 7 of 8 and 15 -> 17 of 18
+(``benchmarks/family_true_model.py --plan-only``, issue 16).
 
 :func:`parametric_form` rebuilds the model's ODE as a function of its coefficient vector
 (:class:`~lsindy_cas.mechanics.parametric.ParametricDynamics`, checked against ``model.ode()``);
@@ -34,7 +35,6 @@ import sympy as sp
 from .._validate import check_real
 from ..mechanics.parametric import ParametricDynamics
 from .fastcall import NumericFunction
-from .ocp import rk4_expr
 
 __all__ = ["CoefficientEstimator", "parametric_form"]
 
@@ -102,12 +102,12 @@ class CoefficientEstimator:
 
     Parameters
     ----------
-    ode : casadi.Function
-        ``(x, u, p) -> xdot`` (:func:`parametric_form`).
+    step : casadi.Function
+        The one-period map ``(x, u, p) -> x_next`` the plan uses (:attr:`OCP.param_step
+        <lsindy_cas.control.ocp.OCP.param_step>`, :func:`~lsindy_cas.control.ocp.rk4_step` of
+        :func:`parametric_form`'s ODE).
     p0 : array_like
         Prior coefficients (the identified model's).
-    dt : float
-        Control period; ``n_substeps`` RK4 steps per period, as the MPC's.
     input_index : int
         Which entry of ``u`` the applied force acts on.
     prior : float
@@ -126,17 +126,16 @@ class CoefficientEstimator:
     #: 20 transitions where the plain EKF (1) was 6e-3 off (its early linearisation lingers)
     ITERATIONS = 3
 
-    def __init__(self, ode, p0, dt, *, input_index, n_substeps=1, prior=0.5, noise=1e-2,
-                 max_change=0.5):
+    def __init__(self, step, p0, *, input_index, prior=0.5, noise=1e-2, max_change=0.5):
         self.p0 = np.asarray(p0, dtype=float).ravel()
         self.prior = check_real("prior", prior, positive=True)
         self.max_change = check_real("max_change", max_change, positive=True)
-        n_state, n_input = ode.size1_in(0), ode.size1_in(1)
+        n_state, n_input = step.size1_in(0), step.size1_in(1)
         self._rows = slice(n_state // 2, n_state)  # the velocities
         self._R = check_real("noise", noise, positive=True) ** 2 * np.eye(n_state - n_state // 2)
         x, u = ca.SX.sym("x", n_state), ca.SX.sym("u", n_input)
         p = ca.SX.sym("p", self.p0.size)
-        nxt = rk4_expr(lambda xk, uk: ode(xk, uk, p), x, u, dt, n_substeps)
+        nxt = step(x, u, p)
         self._fj = NumericFunction(ca.Function("FJ", [x, u, p], [nxt, ca.jacobian(nxt, p)]))
         self.input_index, self.n_input = int(input_index), n_input
         self.reset()

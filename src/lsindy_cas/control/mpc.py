@@ -199,7 +199,7 @@ class DiscreteInputMPC:
                            if self.adapt else None)
         #: online estimate of the model's coefficients for the plan (None: ``coefficients``)
         self.estimator = None if coefficients is None else CoefficientEstimator(
-            param_ode, p0, dt, input_index=self.input_index, n_substeps=ocp.n_substeps)
+            ocp.param_step, ocp.param_values, input_index=self.input_index)
         self._before_build()  # a subclass's own parts, checked before the heavy build
         self._lookahead = None
         if rounding == "lookahead":
@@ -407,10 +407,10 @@ class DiscreteInputMPC:
         raised, e.g. NaN in a function evaluation of a bad model)."""
         try:
             gain = self.correction.gain[self.plan_gain_index] if self.adapt_plan else 0.0
-            # with the coefficients estimated, they carry the input's effect (gain 0)
-            extra = {} if self.estimator is None else {"coef": self.estimator.coef, "gain": 0.0}
-            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, **{"kind": kind, "gain": gain,
-                                    "ref": self.reference, **extra}), self.nlp.last_status)
+            plan = ({"gain": gain} if self.estimator is None  # else the coefficients carry it
+                    else {"gain": 0.0, "coef": self.estimator.coef})
+            return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, ref=self.reference, **plan),
+                    self.nlp.last_status)
         except RuntimeError:
             return "failed", z0, lam_g0, lam_x0, -1, "exception"
 

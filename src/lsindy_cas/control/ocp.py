@@ -27,7 +27,8 @@ def rk4_step(ode, n_state, n_input, dt, n_substeps):
     Parameters
     ----------
     ode : casadi.Function
-        ``(x (n_state,), u (n_input,)) -> xdot (n_state,)``.
+        ``(x (n_state,), u (n_input,)) -> xdot (n_state,)``, or ``(x, u, p) -> xdot`` with
+        coefficients ``p`` (then ``F(x, u, p) -> x_next``).
     n_state, n_input : int
         Sizes of ``x`` and ``u``.
     dt : float
@@ -38,10 +39,14 @@ def rk4_step(ode, n_state, n_input, dt, n_substeps):
     Returns
     -------
     casadi.Function
-        ``F(x, u) -> x_next``, expanded to SX.
+        ``F(x, u) -> x_next`` (``F(x, u, p)``), expanded to SX.
     """
     x = ca.SX.sym("x", n_state)
     u = ca.SX.sym("u", n_input)
+    if ode.n_in() == 3:
+        p = ca.SX.sym("p", ode.size1_in(2))
+        nxt = rk4_expr(lambda xk, uk: ode(xk, uk, p), x, u, dt, n_substeps)
+        return ca.Function("Fp", [x, u, p], [nxt], ["x", "u", "p"], ["x_next"])
     return ca.Function("F", [x, u], [rk4_expr(ode, x, u, dt, n_substeps)], ["x", "u"], ["x_next"])
 
 
@@ -187,10 +192,7 @@ class OCP:
         """``F(x, u, p) -> x_next`` over one interval (None without :attr:`param_ode`)."""
         if self.param_ode is None:
             return None
-        x, u = ca.SX.sym("x", self.n_state), ca.SX.sym("u", self.n_input)
-        p = ca.SX.sym("p", self.param_values.size)
-        nxt = rk4_expr(lambda xk, uk: self.param_ode(xk, uk, p), x, u, self.dt, self.n_substeps)
-        return ca.Function("Fp", [x, u, p], [nxt], ["x", "u", "p"], ["x_next"])
+        return rk4_step(self.param_ode, self.n_state, self.n_input, self.dt, self.n_substeps)
 
     def full_input(self, force):
         """Model input ``u`` (n_input,) with ``force`` on the actuated entry, zeros elsewhere."""

@@ -129,7 +129,6 @@ class MultipleShootingNLP:
         ref = sym.sym("ref", n_state)
         # the model's coefficients (adapt_model: the online estimate), if the OCP has them
         coef = sym.sym("coef", 0 if ocp.param_ode is None else ocp.param_values.size)
-        self.coef0 = None if ocp.param_ode is None else ocp.param_values
         p = ca.vertcat(x_init, gain, ref, *([coef] if coef.numel() else []))
         cs = [sym.sym(f"c{k}", n_c) for k in range(horizon)]
         # x_0 is given, so stage 0 has no slack: ss[k] softens the bounds of x_k, k >= 1
@@ -161,7 +160,7 @@ class MultipleShootingNLP:
                     penalty = (c[0] / scale) ** 2
                 u = ocp.full_input((1 + gain) * force)
                 z += [c, ss[k], xs[k + 1]]
-                nxt = step(xs[k], u) if self.coef0 is None else ocp.param_step(xs[k], u, coef)
+                nxt = step(xs[k], u) if ocp.param_ode is None else ocp.param_step(xs[k], u, coef)
                 gap = xs[k + 1] - nxt  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
                 stage_g.append(-gap if solver.startswith("sqp") else gap)
                 lbg.extend([0.0] * n_state)
@@ -387,6 +386,11 @@ class MultipleShootingNLP:
         if flip:
             lam_g = self._flip_gaps(lam_g)
         return outcome, z, lam_g, np.asarray(res["lam_x"]).ravel(), iters
+
+    @property
+    def coef0(self):
+        """The model's coefficients the NLP defaults to (None: it has none as parameters)."""
+        return self.ocp.param_values if self.ocp.param_ode is not None else None
 
     def parameters(self, x_init, gain=0.0, ref=None, coef=None):
         """The NLP's parameter vector: the initial state, the input-gain error, the state
