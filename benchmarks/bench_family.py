@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from lsindy_cas import systems
+from lsindy_cas.control.sequence_balancer import SequenceBalancer
 from lsindy_cas.control.viability import pole_kernel
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
@@ -120,12 +121,17 @@ def classify(ep, kernel):
 
 
 def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights=None,
-             handover=None, adapt_model=None):
+             handover=None, adapt_model=None, between_weight=None):
     """Episodes of one controller on one plant and scenario; returns a JSON-ready summary
     (``weights``: the swing-up NLP's cost weights, :attr:`SwingUpMPC.default_weights`;
-    ``handover``: :class:`SwingUpMPC`'s, None for its default)."""
+    ``handover``: :class:`SwingUpMPC`'s, None for its default; ``between_weight``: the
+    sequence balancers', None for their default)."""
     ctrl = SwingUpMPC(model, dt=DT, balance=balance, guard=guard, weights=weights,
                       handover=handover, adapt_model=adapt_model)
+    if between_weight is not None:  # also the one an escalating controller may switch to
+        for b in (ctrl.balancer, *(getattr(ctrl, "_escalation", None) or ())):
+            if isinstance(b, SequenceBalancer):
+                b.between_weight = between_weight
     rng = np.random.default_rng(seed)
     p = system.params
     rows, plan_ms = [], []
@@ -246,7 +252,7 @@ def figure(report, path):
 
 
 def run_plant(i, starts, models, balancers, seed, guard=True, weights=None, handover=None,
-              adapt_model=None):
+              adapt_model=None, between_weight=None):
     """Identify plant ``i`` and run every cell on it; returns (row, table lines)."""
     mc, mp, L = PLANTS[i]
     system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
@@ -269,7 +275,7 @@ def run_plant(i, starts, models, balancers, seed, guard=True, weights=None, hand
             for scen in ("nominal", "mismatch"):
                 res[scen] = run_cell(model, system, starts, scen, BALANCERS[bname],
                                      [seed, i, scen == "mismatch"], guard, weights,
-                                     handover, adapt_model)
+                                     handover, adapt_model, between_weight)
                 row["cells"][f"{mname}/{bname}/{scen}"] = res[scen]
             n, m = res["nominal"], res["mismatch"]
             plan = [c["plan_ms_p99"] for c in (n, m) if c["plan_ms_p99"] is not None]
@@ -309,7 +315,12 @@ def main(argv=None):
     ap.add_argument("--adapt-model", action="store_true",
                     help="SwingUpMPC(adapt_model=True): the swing-up plan on an online estimate "
                          "of the model's coefficients")
+    ap.add_argument("--between-weight", type=float,
+                    help="the sequence balancers' between_weight (default theirs, 1; 0: the "
+                         "pole's turn between samples not priced, stop 33's balancer)")
     args = ap.parse_args(argv)
+    if args.between_weight is not None and not 0 <= args.between_weight < float("inf"):
+        ap.error("--between-weight must be a finite number >= 0")
     if args.handover is not None and not 0 <= args.handover < 1.75:
         ap.error("--handover must be in [0, 1.75) m (track limit 2 m, margin 0.25 m)")
     weights = None
@@ -341,14 +352,15 @@ def main(argv=None):
     starts = random_starts(starts_n, args.seed)
     report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE,
               "guard": not args.no_guard, "weights": weights, "handover": args.handover,
-              "adapt_model": args.adapt_model, "plants": []}
+              "adapt_model": args.adapt_model, "between_weight": args.between_weight,
+              "plants": []}
     t_all = time.perf_counter()
     print("| mc | mp | L | kick | worst mismatch kick (share proven unreachable) | cell | nominal |"
           " mismatch | nominal, reachable | mismatch, reachable | median t_up (s) | "
           "max abs x (m) | step p99 (ms) | plan p99 (ms) | failures nominal / mismatch |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     jobs = [(i, starts, models, balancers, args.seed, not args.no_guard, weights, args.handover,
-             args.adapt_model or None) for i in idx]
+             args.adapt_model or None, args.between_weight) for i in idx]
     if args.workers == 1:
         results = (run_plant(*job) for job in jobs)
     else:

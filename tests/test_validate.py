@@ -4,7 +4,8 @@ import types
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas._validate import check_choice, check_int, check_real, relative_energy
+from lsindy_cas._validate import (check_bool, check_choice, check_int, check_real,
+                                  relative_energy)
 
 
 def test_relative_energy_reads_the_models_scale_record():
@@ -23,3 +24,6 @@ def test_checks_name_the_argument_and_convert():
         check_real("dt", 0.0, positive=True)
     with pytest.raises(ValueError, match="mode must be one of"):
         check_choice("mode", "x", ("a", "b"))
+    assert check_bool("jit", False) is False
+    with pytest.raises(TypeError, match="jit must be True or False, got 1"):
+        check_bool("jit", 1)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import numbers
 
-__all__ = ["check_choice", "check_int", "check_real", "relative_energy"]
+__all__ = ["check_bool", "check_choice", "check_int", "check_real", "relative_energy"]
 
 
 def check_int(name: str, value, *, low: int | None = None, high: int | None = None,
@@ -47,6 +47,13 @@ def check_real(name: str, value, *, positive: bool = False, nonnegative: bool = 
         raise ValueError(f"{name} must be positive, got {value!r}")
     if nonnegative and value < 0:
         raise ValueError(f"{name} must be non-negative, got {value!r}")
+    return value
+
+
+def check_bool(name: str, value):
+    """``True`` or ``False`` (not a number standing for one)."""
+    if not isinstance(value, bool):
+        raise TypeError(f"{name} must be True or False, got {value!r}.")
     return value
 
 

@@ -11,13 +11,16 @@ Cost of a sequence (every stage cost is non-negative)::
 
     sum_k  violation_weight * band_excess(z_k)^2 + lean_weight * dt * (phi_k - phi_ref)^2
            + dt * z_k' Q z_k + centre_weight * dt * p_k^2 + push_weight * [u_k != 0]
+           + between_weight * violation_weight * max(0, peak_k - angle_band)^2
     + mode_weight * s_N^2 + z_N' P z_N + centre_weight * (p_N, v0_N)' P_c (p_N, v0_N)
     + escape_weight * violation_weight * max(0, phi*_N - angle_band)^2
 
 with the band excess of the pole angle, pole rate and cart position as in :class:`PulseBalancer`
 (the cart's excess weighted ``track_weight`` times), ``s`` the unstable mode, ``Q`` the
 diagonal ``state_weights`` (plus ``cart_weight`` on the cart), ``P`` its DARE value on the
-linearisation, and ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below).
+linearisation, ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below), and
+``peak_k`` the pole's lean where its rate turns round between samples k-1 and k (0 if it does
+not; :func:`~lsindy_cas.control.upright.turn_excess`): success is judged between them too.
 
 Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
 by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
@@ -28,21 +31,18 @@ accumulated cost plus the current unstable-mode term are kept (a beam); the plan
 proven optimal and :attr:`proven` is False.  Otherwise the returned first level is that of an
 optimal sequence over all ``len(levels)^horizon``.
 
-The cart: pushes move the cart speed and the pole rate in a fixed ratio
-(``ratio = B_xdot / B_thetadot``), so ``v0 = x_dot - ratio * theta_dot`` and
-``p = x - ratio * phi`` are not moved by the pushes (to first order in dt); they obey
-``p' = v0``, ``v0' = kappa * phi``: a double integrator driven by the pole's lean.  Its LQR
-value (lean as the input, closed-loop frequency ``centre_frequency``), times ``centre_weight``,
-is added to the terminal cost and ``centre_weight * dt * p^2`` to the stage cost: over a horizon
+The cart: its slow subsystem ``(p, v0)``, which the pushes do not move and the pole's lean
+drives as a double integrator (:func:`~lsindy_cas.control.upright.slow_cart`), has an LQR value
+(lean as the input, closed-loop frequency ``centre_frequency``) that, times ``centre_weight``,
+is added to the terminal cost, and ``centre_weight * dt * p^2`` to the stage cost: over a horizon
 of well under a second this is what makes the plan lean the pole so that the cart drifts back
 to the centre (the DARE value of the full linearisation, computed for a continuous force,
 does not: it expects the cart to be returned by force).
 
-The escape term (on only where :attr:`turnaround` is False): between pushes ``E = theta_dot^2 -
-omega2 * phi^2`` is conserved, and a push keeps the rate in the band only once ``|theta_dot| >=
-kick - rate_band``, reached at the lean ``phi*^2 = ((kick - rate_band)^2 - E) / omega2``; the
-term penalises ``phi*`` beyond the angle band, so the plan avoids parking the pole at rest on
-top (the hover) where leaving it costs a band touch (docs/history/control.md).
+The escape term (on only where :attr:`turnaround` is False) penalises the lean ``phi*`` where a
+push first keeps the rate in the band (:func:`~lsindy_cas.control.upright.escape_lean`) beyond
+the angle band, so the plan avoids parking the pole at rest on top (the hover) where leaving it
+costs a band touch (docs/history/control.md).
 
 Viability: on the upright linearisation without cart friction the pole ``(phi, theta_dot)``
 does not depend on the cart, so whether it can be kept in the success band for ever is a 2-D
@@ -76,9 +76,10 @@ import time
 
 import numpy as np
 
-from .._validate import check_int, check_real
+from .._validate import check_bool, check_int, check_real
 from .balancer import PulseBalancer
 from .mpc import wrap_angle
+from .upright import escape_lean, slow_cart, turn_excess
 from .viability import BAND, kernel_schedule
 
 __all__ = ["SequenceBalancer"]
@@ -138,6 +139,9 @@ class SequenceBalancer(PulseBalancer):
     speed_weight, speed_time : float
         Weight of the cart-speed term (module docstring; None: ``SPEED_WEIGHT`` if
         :attr:`turnaround` is False, else 0) and its time (s): target speed ``-x / speed_time``.
+    between_weight : float
+        Factor on the band excess of the pole's turn between two samples (module docstring;
+        0: the samples only).
     viability_schedule : sequence of float, optional
         Input-gain factors to build one kernel each for at construction; each plan uses the
         one nearest to the online correction's estimate ``1 + gain`` of the pole rate.
@@ -179,11 +183,12 @@ class SequenceBalancer(PulseBalancer):
                  escape_weight=None, viability=True, viability_weight=1.0,
                  viability_margin=0.25, viability_gains=(1.0,), viability_stage=0.5,
                  viability_schedule=None, viability_stage_margin=0.25, viability_cart=True,
-                 speed_weight=None, speed_time=2.0, **options):
+                 speed_weight=None, speed_time=2.0, between_weight=1.0, **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
         self.cart_weight = check_real("cart_weight", cart_weight, nonnegative=True)
+        self.between_weight = check_real("between_weight", between_weight, nonnegative=True)
         if rate_band is not None:
             rate_band = check_real("rate_band", rate_band, positive=True)
         if "max_pushes" in options:
@@ -198,8 +203,7 @@ class SequenceBalancer(PulseBalancer):
         self.kick = float(abs(self.B[2 + self.ip]) * np.max(np.abs(self.levels)))
         if rate_band is None:
             self.rate_band = float(np.clip(self.kick / 2 + 0.02, 0.42, 0.48))
-        self.horizon = horizon
-        self.max_pushes = None
+        self.horizon, self.max_pushes = horizon, None
         self._band = np.array([self.angle_band, self.rate_band,
                                self.track_limit - self.track_margin])
         track_weight = check_real("track_weight", options.get("track_weight", 10.0),
@@ -219,10 +223,8 @@ class SequenceBalancer(PulseBalancer):
         self._lean_dt = self.lean_weight * self.dt
         self._comps = [self.ip, 2 + self.ip, self.ic]
         from scipy.linalg import solve_discrete_are
-        w = np.asarray(state_weights, dtype=float)
-        Q = np.zeros((4, 4))
-        for i, idx in enumerate((self.ic, self.ip, 2 + self.ic, 2 + self.ip)):
-            Q[idx, idx] = w[i]
+        Q, diag = np.zeros((4, 4)), [self.ic, self.ip, 2 + self.ic, 2 + self.ip]
+        Q[diag, diag] = np.asarray(state_weights, dtype=float)
         Q[self.ic, self.ic] += self.cart_weight
         self.Q = Q * self.dt
         self.P = terminal_weight * solve_discrete_are(self.A, self.B[:, None], self.Q,
@@ -230,13 +232,7 @@ class SequenceBalancer(PulseBalancer):
         # the cart's slow subsystem (p, v0), its LQR value a terminal cost (module docstring)
         self.centre_weight = check_real("centre_weight", centre_weight, nonnegative=True)
         wc = check_real("centre_frequency", centre_frequency, positive=True)
-        from scipy.linalg import solve_continuous_are
-        Pc = solve_continuous_are(np.array([[0.0, 1.0], [0.0, 0.0]]),
-                                  np.array([[0.0], [self.kappa]]), np.diag([1.0, 0.0]),
-                                  np.array([[self.kappa ** 2 / wc ** 4]]))
-        T = np.zeros((2, 4))
-        T[0, self.ic], T[0, self.ip] = 1.0, -self.ratio
-        T[1, 2 + self.ic], T[1, 2 + self.ip] = 1.0, -self.ratio
+        T, Pc = slow_cart(self.kappa, self.ratio, self.ic, self.ip, wc)
         self.P = self.P + self.centre_weight * T.T @ Pc @ T
         self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
         # the cart's speed term (module docstring): w = x_dot - (a_x / omega2) theta_dot
@@ -249,18 +245,13 @@ class SequenceBalancer(PulseBalancer):
         tw[2 + self.ip] = -self.Ac[2 + self.ic, self.ip] / max(self.omega2, 1e-12)
         self.Q = self.Q + self.speed_weight * self.dt * np.outer(tw, tw)
         # the pole's viability kernel on the model's upright linearisation (module docstring)
-        if not isinstance(viability, bool):
-            raise TypeError(f"viability must be True or False, got {viability!r}.")
-        self.viability_weight = check_real("viability_weight", viability_weight,
-                                           nonnegative=True)
-        self.viability_margin = check_real("viability_margin", viability_margin,
-                                           nonnegative=True)
-        self.viability_stage = check_real("viability_stage", viability_stage, nonnegative=True)
-        self.viability_stage_margin = check_real("viability_stage_margin",
-                                                 viability_stage_margin, nonnegative=True)
-        if not isinstance(viability_cart, bool):
-            raise TypeError(f"viability_cart must be True or False, got {viability_cart!r}.")
-        self.viability_cart = viability_cart
+        check_bool("viability", viability)
+        for name, v in (("viability_weight", viability_weight),
+                        ("viability_margin", viability_margin),
+                        ("viability_stage", viability_stage),
+                        ("viability_stage_margin", viability_stage_margin)):
+            setattr(self, name, check_real(name, v, nonnegative=True))
+        self.viability_cart = check_bool("viability_cart", viability_cart)
         self._kernel_w = self.viability_weight * self.violation_weight
         self.kernel, self.kernels = None, {}
         if viability:
@@ -287,6 +278,14 @@ class SequenceBalancer(PulseBalancer):
         if kernel and self.viability_stage > 0.0:
             cost += self.viability_stage * self._viability(z, self._stage_target)
         return cost
+
+    def _between(self, prev, z, reps=1):
+        """Band excess cost of the pole's turn inside the interval from each state of ``prev``
+        to its ``reps`` successors in ``z`` (:func:`~lsindy_cas.control.upright.turn_excess`)."""
+        if self.between_weight == 0.0:
+            return 0.0
+        over = turn_excess(prev, z, reps, self.ip, self.dt, self.angle_band)
+        return self.between_weight * self.violation_weight * over * over
 
     def _terminal(self, z):
         """Terminal cost of error states ``z`` (n, 4): unstable mode, DARE value and escape."""
@@ -330,17 +329,14 @@ class SequenceBalancer(PulseBalancer):
         return abs(p + v0 * abs(v0) / (2 * brake)) / (self.track_limit - self.track_margin)
 
     def _escape(self, z):
-        """Penalty on the lean the pole must reach before a push can keep its rate in the band:
-        between pushes ``E = theta_dot^2 - omega2 * phi^2`` is conserved; a push keeps the rate
-        inside ``rate_band`` only once ``|theta_dot| >= kick - rate_band``, which the pole
-        reaches at ``phi*^2 = ((kick - rate_band)^2 - E) / omega2``.  The squared excess of
-        ``phi*`` over ``angle_band``, weighted as a band violation times ``escape_weight``.
-        """
+        """Penalty on the lean the pole must reach before a push can keep its rate in the band
+        (:func:`~lsindy_cas.control.upright.escape_lean`, with ``kick - rate_band``): its
+        squared excess over ``angle_band``, weighted as a band violation times
+        ``escape_weight``."""
         if self.escape_weight == 0.0 or self.omega2 <= 0.0:
             return 0.0
-        phi, rate = z[:, self.ip], z[:, 2 + self.ip]
-        need = (self.escape_rate ** 2 - rate * rate) / self.omega2 + phi * phi
-        over = np.sqrt(np.maximum(need, 0.0)) - self.angle_band
+        over = escape_lean(z[:, self.ip], z[:, 2 + self.ip], self.escape_rate, self.omega2)
+        over -= self.angle_band
         np.maximum(over, 0.0, out=over)
         return self.escape_weight * self.violation_weight * over * over
 
@@ -363,6 +359,9 @@ class SequenceBalancer(PulseBalancer):
         for k in range(H):
             z = zs[k] = z @ A.T + bias + u[:, k, None] * b
         stage = self._stage(zs.reshape(-1, 4), phi_ref).reshape(H, n)
+        if self.between_weight:
+            prev = np.concatenate([np.tile(e, (1, n, 1)), zs[:-1]]).reshape(-1, 4)
+            stage += self._between(prev, zs.reshape(-1, 4)).reshape(H, n)
         push = self.push_weight * (u != 0)
         cost = np.zeros(n)
         for k in range(H):
@@ -403,7 +402,8 @@ class SequenceBalancer(PulseBalancer):
             nxt = states @ A.T + bias
             child = (nxt[:, None, :] + push_b).reshape(-1, 4)   # (M * L, 4)
             c = ((costs[:, None] + push_cost).ravel()
-                 + self._stage(child, phi_ref, kernel=False))
+                 + self._stage(child, phi_ref, kernel=False)
+                 + self._between(states, child, n_lev))
             if k == H - 1:
                 c += self._terminal(child)
             nodes += c.size

@@ -15,6 +15,11 @@ pole over on the side the slow creep leaves from gives the cart the longest run 
 Where gravity turns the pole round inside the band but only beyond the balancer's 0.08 rad angle
 band (the family's 0.8/0.2/0.7, 0.6/0.2/1.0 and 0.7/0.4/0.8) the same side measured better too;
 below that lean it did not (docs/history/control.md, stop 31).
+
+Also here, on the upright linearisation's pole: the sequence balancer's pole terms
+(:func:`escape_lean`, :func:`peak_between` / :func:`turn_excess` for the pole's turn between two
+samples, :func:`slow_cart` for the cart's slow subsystem) and :func:`reversal_margin`, an exact
+check of whether the cart's creep can be reversed with the pole inside the success band.
 """
 
 from __future__ import annotations
@@ -24,7 +29,8 @@ import numpy as np
 
 from .mpc import wrap_angle
 
-__all__ = ["com_speed_step", "find_upright", "handover_side", "reversal_in_band", "step_kick",
+__all__ = ["com_speed_step", "escape_lean", "find_upright", "handover_side", "peak_between",
+           "reversal_in_band", "reversal_margin", "slow_cart", "step_kick", "turn_excess",
            "upright_kick"]
 
 
@@ -123,34 +129,134 @@ def handover_side(balancer, x, window=0.25):
     return 1 if phase < 0.5 else -1
 
 
-def reversal_in_band(balancer, angle=0.1, rate=0.5, periods=80, n=199):
-    """Whether the cart's creep can be reversed with the pole kept in the band ``|phi| < angle``,
-    ``|theta_dot| < rate`` (the success band by default) at every sample.
+def slow_cart(kappa, ratio, cart_index, pole_index, frequency):
+    """The cart's slow subsystem at the upright and the value of its LQR design.
+
+    Pushes move the cart speed and the pole rate in the ratio ``ratio``, so ``p = x - ratio *
+    phi`` and ``v0 = x_dot - ratio * theta_dot`` are not moved by them; ``p' = v0``, ``v0' =
+    kappa * phi``: a double integrator driven by the lean.  Returns ``T`` (2, 4), the map from
+    the error state to ``(p, v0)``, and ``Pc`` (2, 2), the value of the LQR design with state
+    cost ``p^2`` whose closed loop has natural frequency ``frequency`` (rad/s).
+    """
+    from scipy.linalg import solve_continuous_are
+    Pc = solve_continuous_are(np.array([[0.0, 1.0], [0.0, 0.0]]), np.array([[0.0], [kappa]]),
+                              np.diag([1.0, 0.0]), np.array([[kappa ** 2 / frequency ** 4]]))
+    T = np.zeros((2, 4))
+    T[0, cart_index], T[0, pole_index] = 1.0, -ratio
+    T[1, 2 + cart_index], T[1, 2 + pole_index] = 1.0, -ratio
+    return T, Pc
+
+
+def escape_lean(phi, rate, escape_rate, omega2):
+    """The lean at which a pole at ``(phi, rate)`` (n,) first reaches ``|theta_dot| =
+    escape_rate``: between pushes ``E = theta_dot^2 - omega2 * phi^2`` is conserved, so
+    ``phi*^2 = (escape_rate^2 - E) / omega2`` (0 where it is already there).  With
+    ``escape_rate = kick - rate_band`` it is where a push first keeps the rate in the band."""
+    need = (escape_rate ** 2 - rate * rate) / omega2 + phi * phi
+    return np.sqrt(np.maximum(need, 0.0))
+
+
+def peak_between(phi0, rate0, phi1, rate1, dt):
+    """``|phi|`` at the pole's turn inside a period from its ends' leans and rates (n,), where
+    the rate changes sign inside and the turn lies beyond both ends; 0 elsewhere.  The
+    acceleration is taken constant over the period (``(rate1 - rate0) / dt``): the turn is at
+    ``phi0 - rate0^2 / (2 a)``."""
+    phi0, rate0 = np.asarray(phi0, dtype=float), np.asarray(rate0, dtype=float)
+    a = (np.asarray(rate1, dtype=float) - rate0) / dt
+    turns = rate0 * rate1 < 0.0
+    peak = np.zeros_like(phi0)
+    peak[turns] = np.abs(phi0[turns] - rate0[turns] ** 2 / (2.0 * a[turns]))
+    peak[peak <= np.maximum(np.abs(phi0), np.abs(phi1))] = 0.0
+    return peak
+
+
+def turn_excess(prev, z, reps, pole_index, dt, band):
+    """How far the pole's turn inside each interval leaves ``|phi| <= band``: for each state of
+    ``prev`` (n, 4) and each of its ``reps`` successors, rows ``reps * i ... reps * i + reps - 1``
+    of ``z`` (n * reps, 4), ``max(0, peak - band)`` with ``peak`` from :func:`peak_between`.
+
+    The rate turns inside the interval only if ``|rate1 - rate0| > |rate0|``, so a turn reaches
+    at most ``|phi0| + |rate0| dt / 2``; only the states of ``prev`` from which that exceeds
+    ``band`` are evaluated.
+    """
+    over, phi0, rate0 = np.zeros(len(z)), prev[:, pole_index], prev[:, 2 + pole_index]
+    near = np.flatnonzero(np.abs(phi0) + np.abs(rate0) * (0.5 * dt) > band - 1e-12)
+    if near.size:
+        rows = (near[:, None] * reps + np.arange(reps)).ravel()
+        peak = peak_between(np.repeat(phi0[near], reps), np.repeat(rate0[near], reps),
+                            z[rows, pole_index], z[rows, 2 + pole_index], dt)
+        peak -= band
+        over[rows] = np.maximum(peak, 0.0)
+    return over
+
+
+def reversal_margin(balancer, angle=0.1, rate=0.5, periods=20, substeps=5, full=False):
+    """The largest share ``t`` by which the band ``|phi| <= angle``, ``|theta_dot| <= rate`` can
+    shrink (to ``(1 - t)`` times both) with a reversal of the cart's creep still inside it at
+    ``substeps`` evenly spaced instants of every period (the swing-up benchmarks judge success at
+    5 per period), the pushes at most ``periods`` periods apart; negative where no such reversal
+    stays inside the band itself.  ``full=True`` returns ``(t, idle periods between the pushes,
+    start (phi, theta_dot))`` of the best one.
 
     A reversal changes the pair of levels the centre of mass's speed alternates between, which
     takes two pushes of one sign with only zero forces between them.  Between pushes ``phi'' =
     omega2 phi`` keeps ``theta_dot^2 - omega2 phi^2`` constant, so the rate must turn round and,
     pushes taken as instantaneous, the second comes at ``|phi| >= (kick - rate) / omega``
-    (``turn_lean`` for the success band's rate).  Checked here exhaustively on the pole's part of
-    ``balancer``'s discrete upright linearisation (a
-    :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer`): every state of an ``n`` x
-    ``n`` grid of the band, both signs, 0 to ``periods - 1`` zero periods between the pushes,
-    the band required at the samples only.  That is a little more lenient than the bound (a
-    push acts over its period, with gravity): with the success band it finds a reversal up to
-    ``turn_lean`` ~0.110 rad (none on the family's 0.5/0.05/1.2 at 0.112).
+    (``turn_lean`` for the success band's rate); a push held over its period, with gravity,
+    moves that line a little.  Computed exactly on the pole's part of ``balancer``'s upright
+    linearisation (a :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer`; its
+    continuous pole block, the push held over each period as on the plant): for each number of
+    idle periods between the pushes every state on the way is linear in the start, so the best
+    start is a linear program in three unknowns (HiGHS).
+
+    ``periods`` bounds the idle time: the longer the pole coasts between the pushes, the closer
+    it must pass the unstable equilibrium, and a start error grows as ``exp(omega t)`` (about 20
+    times in 1 s on the family's thin plants); with no bound the program finds knife-edge
+    reversals that rest on the top for seconds (docs/history/control.md, stop 34).
     """
-    ip = balancer.ip
-    A = balancer.A[np.ix_([ip, 2 + ip], [ip, 2 + ip])]
-    push = balancer.B[[ip, 2 + ip], None] * float(np.max(np.abs(balancer.levels)))
-    inside = lambda s: (np.abs(s[0]) < angle) & (np.abs(s[1]) < rate)  # noqa: E731
-    grid = np.meshgrid(np.linspace(-angle, angle, n + 2)[1:-1],
-                       np.linspace(-rate, rate, n + 2)[1:-1])
-    for sign in (1.0, -1.0):
-        s = A @ np.stack([g.ravel() for g in grid]) + sign * push
-        ok = inside(s)
-        for _ in range(periods):
-            if (ok & inside(A @ s + sign * push)).any():
-                return True
-            s = A @ s
-            ok &= inside(s)
-    return False
+    from scipy.linalg import expm
+    from scipy.optimize import linprog
+    substeps, periods = int(substeps), int(periods)
+    if substeps < 1 or periods < 1:
+        raise ValueError("substeps and periods must be positive integers.")
+    ip, dt = balancer.ip, balancer.dt
+    idx = [ip, 2 + ip]
+    Ac = balancer.Ac[np.ix_(idx, idx)]
+    # the continuous push column that, held over a period, gives the balancer's discrete push
+    gamma = expm(np.block([[Ac, np.eye(2)], [np.zeros((2, 4))]]) * dt)[:2, 2:]
+    bc = np.linalg.solve(gamma, balancer.B[idx] * float(np.max(np.abs(balancer.levels))))
+    aug = np.zeros((3, 3))
+    aug[:2, :2], aug[:2, 2] = Ac, bc
+    maps = [expm(aug * dt * (j + 1) / substeps) for j in range(substeps)]  # [[Phi, Gamma bc]]
+    scale = np.array([1.0 / angle, 1.0 / rate])
+
+    def period(M, push):
+        """Affine maps of the start (2 x 3: [linear | constant]) at each instant of a period
+        that begins at the affine map ``M``, under ``push`` (0 or 1)."""
+        return [m[:2, :2] @ M + push * np.outer(m[:2, 2], [0.0, 0.0, 1.0]) for m in maps]
+
+    # the pole's linearisation is odd, so two negative pushes mirror two positive ones
+    best = (-np.inf, None, None)
+    rows = [np.hstack([np.eye(2), np.zeros((2, 1))])]
+    rows += period(rows[0], 1.0)
+    for idle in range(periods):
+        G = np.vstack(rows + period(rows[-1], 1.0))
+        G = G * np.tile(scale, len(G) // 2)[:, None]
+        # |G[:, :2] s + G[:, 2]| <= 1 - t at every instant; maximise t
+        ones = np.ones((len(G), 1))
+        res = linprog([0.0, 0.0, -1.0], A_ub=np.vstack([np.hstack([G[:, :2], ones]),
+                                                        np.hstack([-G[:, :2], ones])]),
+                      b_ub=np.concatenate([1.0 - G[:, 2], 1.0 + G[:, 2]]),
+                      bounds=[(None, None), (None, None), (-1.0, 1.0)], method="highs")
+        if res.status == 0 and res.x[2] > best[0]:
+            best = (float(res.x[2]), idle, res.x[:2].copy())
+        rows += period(rows[-1], 0.0)
+    return best if full else best[0]
+
+
+def reversal_in_band(balancer, angle=0.1, rate=0.5, periods=20, substeps=5):
+    """Whether the cart's creep can be reversed with the pole kept strictly inside the band
+    ``|phi| < angle``, ``|theta_dot| < rate`` (the success band by default) at ``substeps``
+    instants of every period, the two pushes at most ``periods`` periods apart:
+    :func:`reversal_margin` > 0."""
+    return reversal_margin(balancer, angle, rate, periods, substeps) > 0.0
