@@ -98,6 +98,8 @@ def test_bad_options(corner):
         SwingUpMPC(system, balance={"method": "sequence", "max_pushes": 3})
     with pytest.raises(ValueError, match="unknown keys"):  # auto: only options both take
         SwingUpMPC(system, balance={"method": "auto", "max_pushes": 3})
+    with pytest.raises(ValueError, match="sequence balancer's only.*'method': 'sequence'"):
+        SwingUpMPC(system, balance={"between_weight": 0.0})   # a dict alone: the pulse one
     args = (ctrl.step_function, system.ode(), ctrl.levels)
     kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
     with pytest.raises(ValueError, match="max_frontier"):

@@ -84,6 +84,10 @@ def _balancer_kind(balance):
         if kind is SequenceBalancer:
             allowed.discard("max_pushes")
     unknown = set(options) - allowed
+    only_seq = unknown & (set(SequenceBalancer.__init__.__kwdefaults__) - pulse)
+    if only_seq and only_seq == unknown:  # a dict without "method" is the pulse balancer's
+        raise ValueError(f"balance keys {sorted(only_seq)} are the sequence balancer's only; "
+                         f"pass balance={{'method': 'sequence', ...}} to use them.")
     if unknown:
         raise ValueError(f"balance has unknown keys {sorted(unknown)}; known: "
                          f"{sorted(allowed | {'method'})}.")
