@@ -169,7 +169,7 @@ class PulseBalancer:
         A, B, Ac, Bc = (np.asarray(m, dtype=float) for m in jac(self.x_ref, np.zeros(2)))
         if not (np.all(np.isfinite(A)) and np.all(np.isfinite(Ac))):
             raise ValueError("the model's dynamics are not finite at the upright.")
-        self.A, self.B, self.Ac = A, B[:, self.ic], Ac
+        self.A, self.B, self.Ac, self.Bc = A, B[:, self.ic], Ac, Bc[:, self.ic]
         ic, ip = self.ic, self.ip
         b_pole = Bc[2 + ip, ic]
         if abs(b_pole) < 1e-12:

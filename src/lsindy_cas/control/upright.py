@@ -221,12 +221,9 @@ def reversal_margin(balancer, angle=0.1, rate=0.5, periods=20, substeps=5, full=
         raise ValueError("substeps and periods must be positive integers.")
     ip, dt = balancer.ip, balancer.dt
     idx = [ip, 2 + ip]
-    Ac = balancer.Ac[np.ix_(idx, idx)]
-    # the continuous push column that, held over a period, gives the balancer's discrete push
-    gamma = expm(np.block([[Ac, np.eye(2)], [np.zeros((2, 4))]]) * dt)[:2, 2:]
-    bc = np.linalg.solve(gamma, balancer.B[idx] * float(np.max(np.abs(balancer.levels))))
-    aug = np.zeros((3, 3))
-    aug[:2, :2], aug[:2, 2] = Ac, bc
+    aug = np.zeros((3, 3))   # the pole's part, a push of the largest level held over a period
+    aug[:2, :2] = balancer.Ac[np.ix_(idx, idx)]
+    aug[:2, 2] = balancer.Bc[idx] * float(np.max(np.abs(balancer.levels)))
     maps = [expm(aug * dt * (j + 1) / substeps) for j in range(substeps)]  # [[Phi, Gamma bc]]
     scale = np.array([1.0 / angle, 1.0 / rate])
 
