@@ -39,7 +39,6 @@ from pathlib import Path
 import numpy as np
 
 from lsindy_cas import systems
-from lsindy_cas.control.sequence_balancer import SequenceBalancer
 from lsindy_cas.control.viability import pole_kernel
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
@@ -126,12 +125,12 @@ def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights
     (``weights``: the swing-up NLP's cost weights, :attr:`SwingUpMPC.default_weights`;
     ``handover``: :class:`SwingUpMPC`'s, None for its default; ``between_weight``: the
     sequence balancers', None for their default)."""
+    if between_weight is not None and balance is not False:  # the sequence balancer's option
+        balance = {"method": "auto"} if balance is True else dict(balance)
+        if balance["method"] != "pulse":
+            balance["between_weight"] = between_weight
     ctrl = SwingUpMPC(model, dt=DT, balance=balance, guard=guard, weights=weights,
                       handover=handover, adapt_model=adapt_model)
-    if between_weight is not None:  # also the one an escalating controller may switch to
-        for b in (ctrl.balancer, *(getattr(ctrl, "_escalation", None) or ())):
-            if isinstance(b, SequenceBalancer):
-                b.between_weight = between_weight
     rng = np.random.default_rng(seed)
     p = system.params
     rows, plan_ms = [], []

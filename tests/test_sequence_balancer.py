@@ -100,6 +100,22 @@ def test_bad_options(corner):
         SwingUpMPC(system, balance={"method": "auto", "max_pushes": 3})
     with pytest.raises(ValueError, match="sequence balancer's only.*'method': 'sequence'"):
         SwingUpMPC(system, balance={"between_weight": 0.0})   # a dict alone: the pulse one
+
+
+def test_auto_passes_the_sequence_balancers_own_options_to_it_only(corner, shared_mpc):
+    """``{"method": "auto", ...}`` takes the sequence balancer's own options: the balancer
+    chosen for a large kick gets them, and on the paper plant (pulse balancer chosen) the
+    sequence balancer it may escalate to does, the pulse one is built without them."""
+    system, _ = corner
+    auto = {"method": "auto", "between_weight": 0.0, "max_frontier": 300}
+    ctrl = SwingUpMPC(system, balance=auto)
+    assert isinstance(ctrl.balancer, SequenceBalancer)
+    assert ctrl.balancer.between_weight == 0.0 and ctrl.balancer.max_frontier == 300
+    paper = SwingUpMPC(systems.cart_pendulum(), balance=auto)
+    pulse, sequence = paper._escalation[:2]
+    assert paper.balancer is pulse and not isinstance(pulse, SequenceBalancer)
+    assert sequence.between_weight == 0.0 and sequence.max_frontier == 300
+    assert SwingUpMPC(system).balancer.between_weight == 1.0     # the default
     args = (ctrl.step_function, system.ode(), ctrl.levels)
     kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
     with pytest.raises(ValueError, match="max_frontier"):

@@ -77,14 +77,15 @@ def _balancer_kind(balance):
     kind = kinds[method]
     own = {"track_margin", "correction"}  # set by the controller itself
     pulse = set(PulseBalancer.__init__.__kwdefaults__)
-    if kind == "auto":  # options both balancers take, applied to the one chosen
-        allowed = pulse - own - {"max_pushes"}
+    sequence_only = set(SequenceBalancer.__init__.__kwdefaults__) - pulse
+    if kind == "auto":  # options both take, and the sequence balancer's own (for it only)
+        allowed = (pulse | sequence_only) - own - {"max_pushes"}
     else:
         allowed = (pulse | set(kind.__init__.__kwdefaults__)) - own
         if kind is SequenceBalancer:
             allowed.discard("max_pushes")
     unknown = set(options) - allowed
-    only_seq = unknown & (set(SequenceBalancer.__init__.__kwdefaults__) - pulse)
+    only_seq = unknown & sequence_only
     if only_seq and only_seq == unknown:  # a dict without "method" is the pulse balancer's
         raise ValueError(f"balance keys {sorted(only_seq)} are the sequence balancer's only; "
                          f"pass balance={{'method': 'sequence', ...}} to use them.")
@@ -147,9 +148,10 @@ class SwingUpMPC(DiscreteInputMPC):
         and bound over all level sequences, for plants whose push is nearly as large as the
         band; its own options ``max_frontier``, ``violation_weight``, ``state_weights``,
         ``centre_weight``, ... are accepted then); a dict without ``"method"`` means the
-        pulse balancer.  ``balance=True`` (or ``{"method": "auto"}``, which accepts only the
-        options both take) uses the sequence balancer when the model's :meth:`kick` is at
-        least :attr:`SEQUENCE_KICK`, the pulse balancer otherwise.  Waiting is the balancer's
+        pulse balancer.  ``balance=True`` (or ``{"method": "auto"}``, which accepts the options
+        both take and the sequence balancer's own, passed to it only) uses the sequence
+        balancer when the model's :meth:`kick` is at least :attr:`SEQUENCE_KICK`, the pulse
+        balancer otherwise.  Waiting is the balancer's
         main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
         without 0 in the set is an error).
     guard : bool or dict
@@ -348,10 +350,13 @@ class SwingUpMPC(DiscreteInputMPC):
         if balance is True and 0.0 not in self.levels:
             kind = None  # nothing to wait with: the relaxed plan decides everywhere
         self._escalation = None  # (pulse, sequence balancer) while "auto" may switch
+        own = set(SequenceBalancer.__init__.__kwdefaults__) - set(
+            PulseBalancer.__init__.__kwdefaults__)   # "auto": the sequence balancer's only
         build = (lambda k: k(self.step_function, self.ocp.ode, self.levels, cart_index=ic,
                              pole_index=ip, upright=self.upright, track_limit=self.track_limit,
                              dt=self.dt, track_margin=track_margin, correction=self.correction,
-                             **balance_options))
+                             **{key: v for key, v in balance_options.items()
+                                if k is SequenceBalancer or key not in own}))
         if kind == "auto":
             kind = (SequenceBalancer if self.kick() >= self.SEQUENCE_KICK
                     else PulseBalancer)
