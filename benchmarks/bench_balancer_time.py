@@ -80,8 +80,9 @@ def main(argv=None):
              f"{args.starts} --repeats {args.repeats}` ({time.perf_counter() - t0:.0f} s): plant "
              f"{mc}/{mp}/{L}, exact model, sequence balancer, {args.starts} nominal starts, "
              "the two configurations interleaved start by start; one figure per repeat.", "",
-             "| configuration | successes | plans | plan median (ms) | plan p99 (ms) | plan max (ms) "
-             "| step median (ms) | step p99 (ms) |", "|---|---|---|---|---|---|---|---|"]
+             "| configuration | successes | plans | plan median (ms) | plan p99 (ms) | "
+             "plan max (ms) | step median (ms) | step p99 (ms) |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, rs in runs.items():
         lines.append(f"| {name} | {rs[0]['successes']}/{args.starts} | {rs[0]['plans']} | "
                      f"{fmt(rs, 'plan_ms_median')} | {fmt(rs, 'plan_ms_p99')} | "

@@ -6,9 +6,9 @@ between them the pole's rate must turn round, which it does only at a lean of ``
 (kick - 0.5) / omega`` or more.  Where that exceeds the success band's 0.1 rad, every reversal
 leaves the band (:func:`lsindy_cas.control.upright.reversal_margin` checks it exactly, a linear
 program on the plant's own upright linearisation with the band at 5 instants per period as
-success is judged and the pushes at most 1 s apart), so no controller keeps such a pole in the band once the
-track forces a reversal: its 10 s success is a matter of when that falls, and such episodes are
-not "out of reach" (a viability kernel is not empty) but limited by the physics.
+success is judged and the pushes at most 1 s apart), so no controller keeps such a pole in the
+band once the track forces a reversal: its 10 s success is a matter of when that falls, and such
+episodes are not "out of reach" (a viability kernel is not empty) but limited by the physics.
 
 This script reads a ``bench_family.py`` JSON (default: the committed 60-start run), rebuilds
 each episode's simulated plant from its mismatch factors, classifies it (``unreachable``: empty
@@ -108,7 +108,8 @@ def main(argv=None):
              "the band could shrink with such a reversal still inside). `unreachable`: empty "
              "viability kernel, as in the benchmark.",
              "", "| plant | cell | turn_lean (rad) | margin | reversal in band | "
-             "no reversal in band | unreachable | reversal in band >= 95 % |", "|---|---|---|---|---|---|---|---|"]
+             "no reversal in band | unreachable | reversal in band >= 95 % |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         cnt = r["counts"]
         s, n = cnt["reversal in band"]

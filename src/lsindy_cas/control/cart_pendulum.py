@@ -62,6 +62,10 @@ def _energy_gap(model, coords, cart_index, pole_index, upright):
     return ca.Function("energy_gap", [x], [(energy(still) - h_up) / (h_up - h_down)])
 
 
+_SEQUENCE_ONLY = frozenset(SequenceBalancer.__init__.__kwdefaults__) - frozenset(
+    PulseBalancer.__init__.__kwdefaults__)  # "auto" passes these to the sequence balancer only
+
+
 def _balancer_kind(balance):
     """The balancer class and its options chosen by ``balance`` (True, False or a dict)."""
     if not isinstance(balance, (bool, dict)):
@@ -77,15 +81,14 @@ def _balancer_kind(balance):
     kind = kinds[method]
     own = {"track_margin", "correction"}  # set by the controller itself
     pulse = set(PulseBalancer.__init__.__kwdefaults__)
-    sequence_only = set(SequenceBalancer.__init__.__kwdefaults__) - pulse
     if kind == "auto":  # options both take, and the sequence balancer's own (for it only)
-        allowed = (pulse | sequence_only) - own - {"max_pushes"}
+        allowed = (pulse | _SEQUENCE_ONLY) - own - {"max_pushes"}
     else:
         allowed = (pulse | set(kind.__init__.__kwdefaults__)) - own
         if kind is SequenceBalancer:
             allowed.discard("max_pushes")
     unknown = set(options) - allowed
-    only_seq = unknown & sequence_only
+    only_seq = unknown & _SEQUENCE_ONLY
     if only_seq and only_seq == unknown:  # a dict without "method" is the pulse balancer's
         raise ValueError(f"balance keys {sorted(only_seq)} are the sequence balancer's only; "
                          f"pass balance={{'method': 'sequence', ...}} to use them.")
@@ -151,9 +154,8 @@ class SwingUpMPC(DiscreteInputMPC):
         pulse balancer.  ``balance=True`` (or ``{"method": "auto"}``, which accepts the options
         both take and the sequence balancer's own, passed to it only) uses the sequence
         balancer when the model's :meth:`kick` is at least :attr:`SEQUENCE_KICK`, the pulse
-        balancer otherwise.  Waiting is the balancer's
-        main move, so ``balance=True`` uses it only if ``force_set`` contains 0 (a dict
-        without 0 in the set is an error).
+        balancer otherwise.  Waiting is the balancer's main move, so ``balance=True`` uses it
+        only if ``force_set`` contains 0 (a dict without 0 in the set is an error).
     guard : bool or dict
         Keep the cart on the track whatever the controller chose
         (:class:`~lsindy_cas.control.track_guard.TrackGuard`): where the model predicts that
@@ -350,13 +352,11 @@ class SwingUpMPC(DiscreteInputMPC):
         if balance is True and 0.0 not in self.levels:
             kind = None  # nothing to wait with: the relaxed plan decides everywhere
         self._escalation = None  # (pulse, sequence balancer) while "auto" may switch
-        own = set(SequenceBalancer.__init__.__kwdefaults__) - set(
-            PulseBalancer.__init__.__kwdefaults__)   # "auto": the sequence balancer's only
         build = (lambda k: k(self.step_function, self.ocp.ode, self.levels, cart_index=ic,
                              pole_index=ip, upright=self.upright, track_limit=self.track_limit,
                              dt=self.dt, track_margin=track_margin, correction=self.correction,
                              **{key: v for key, v in balance_options.items()
-                                if k is SequenceBalancer or key not in own}))
+                                if k is SequenceBalancer or key not in _SEQUENCE_ONLY}))
         if kind == "auto":
             kind = (SequenceBalancer if self.kick() >= self.SEQUENCE_KICK
                     else PulseBalancer)
