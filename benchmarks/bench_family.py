@@ -120,15 +120,15 @@ def classify(ep, kernel):
 
 
 def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights=None,
-             handover=None, adapt_model=None, between_weight=None):
+             handover=None, adapt_model=None, sequence_options=None):
     """Episodes of one controller on one plant and scenario; returns a JSON-ready summary
     (``weights``: the swing-up NLP's cost weights, :attr:`SwingUpMPC.default_weights`;
-    ``handover``: :class:`SwingUpMPC`'s, None for its default; ``between_weight``: the
-    sequence balancers', None for their default)."""
-    if between_weight is not None and balance is not False:  # the sequence balancer's option
+    ``handover``: :class:`SwingUpMPC`'s, None for its default; ``sequence_options``: the
+    sequence balancers' own options to change, e.g. ``{"between_weight": 0}``)."""
+    if sequence_options and balance is not False:  # options of the sequence balancer only
         balance = {"method": "auto"} if balance is True else dict(balance)
         if balance["method"] != "pulse":
-            balance["between_weight"] = between_weight
+            balance.update(sequence_options)
     ctrl = SwingUpMPC(model, dt=DT, balance=balance, guard=guard, weights=weights,
                       handover=handover, adapt_model=adapt_model)
     rng = np.random.default_rng(seed)
@@ -251,7 +251,7 @@ def figure(report, path):
 
 
 def run_plant(i, starts, models, balancers, seed, guard=True, weights=None, handover=None,
-              adapt_model=None, between_weight=None):
+              adapt_model=None, sequence_options=None):
     """Identify plant ``i`` and run every cell on it; returns (row, table lines)."""
     mc, mp, L = PLANTS[i]
     system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
@@ -274,7 +274,7 @@ def run_plant(i, starts, models, balancers, seed, guard=True, weights=None, hand
             for scen in ("nominal", "mismatch"):
                 res[scen] = run_cell(model, system, starts, scen, BALANCERS[bname],
                                      [seed, i, scen == "mismatch"], guard, weights,
-                                     handover, adapt_model, between_weight)
+                                     handover, adapt_model, sequence_options)
                 row["cells"][f"{mname}/{bname}/{scen}"] = res[scen]
             n, m = res["nominal"], res["mismatch"]
             plan = [c["plan_ms_p99"] for c in (n, m) if c["plan_ms_p99"] is not None]
@@ -317,9 +317,18 @@ def main(argv=None):
     ap.add_argument("--between-weight", type=float,
                     help="the sequence balancers' between_weight (default theirs, 1; 0: the "
                          "pole's turn between samples not priced, stop 33's balancer)")
+    ap.add_argument("--success-weight", type=float,
+                    help="the sequence balancers' success_weight (default theirs; 0: leaving "
+                         "the success band priced only as the planning bands' squared excess, "
+                         "stop 34's balancer)")
     args = ap.parse_args(argv)
-    if args.between_weight is not None and not 0 <= args.between_weight < float("inf"):
-        ap.error("--between-weight must be a finite number >= 0")
+    sequence_options = {}
+    for name in ("between_weight", "success_weight"):
+        value = getattr(args, name)
+        if value is not None and not 0 <= value < float("inf"):
+            ap.error(f"--{name.replace('_', '-')} must be a finite number >= 0")
+        if value is not None:
+            sequence_options[name] = value
     if args.handover is not None and not 0 <= args.handover < 1.75:
         ap.error("--handover must be in [0, 1.75) m (track limit 2 m, margin 0.25 m)")
     weights = None
@@ -352,6 +361,7 @@ def main(argv=None):
     report = {"starts": starts_n, "seed": args.seed, "dt": DT, "force": FORCE,
               "guard": not args.no_guard, "weights": weights, "handover": args.handover,
               "adapt_model": args.adapt_model, "between_weight": args.between_weight,
+              "success_weight": args.success_weight,
               "plants": []}
     t_all = time.perf_counter()
     print("| mc | mp | L | kick | worst mismatch kick (share proven unreachable) | cell | nominal |"
@@ -359,7 +369,7 @@ def main(argv=None):
           "max abs x (m) | step p99 (ms) | plan p99 (ms) | failures nominal / mismatch |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     jobs = [(i, starts, models, balancers, args.seed, not args.no_guard, weights, args.handover,
-             args.adapt_model or None, args.between_weight) for i in idx]
+             args.adapt_model or None, sequence_options) for i in idx]
     if args.workers == 1:
         results = (run_plant(*job) for job in jobs)
     else:

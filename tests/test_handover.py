@@ -158,7 +158,7 @@ def test_off_centre_hand_over_keeps_a_creeping_cart_off_the_track_edge(light):
     x0 = random_starts(60, 0)[17]
     assert handover_side(ctrl.balancer, x0) == 1
     assert run_episode(ctrl, Plant(system, 0.05), x0).success
-    stop31 = {"method": "sequence", "between_weight": 0.0}
+    stop31 = {"method": "sequence", "between_weight": 0.0, "success_weight": 0.0}
     offset = SwingUpMPC(system, balance=stop31)
     assert run_episode(offset, Plant(system, 0.05), x0).success
     centre = SwingUpMPC(system, handover=0.0, balance=stop31)

@@ -243,8 +243,34 @@ def test_peak_between_samples_known_answers():
     # the balancer's term: the squared excess over its angle band, weighted as a violation
     b = SequenceBalancer.__new__(SequenceBalancer)
     b.ip, b.dt, b.angle_band, b.violation_weight, b.between_weight = 1, 0.05, 0.08, 1e4, 1.0
+    b._success_w = 1e3 / np.array([0.1, 0.5])     # success_weight 1e3; 0.093 is inside 0.1
     z0, z1 = np.array([[0.0, 0.09, 0.0, 0.3]]), np.array([[0.0, phi1, 0.0, rate1]])
     assert b._between(z0, z1)[0] == pytest.approx(1e4 * 0.013 ** 2, rel=1e-9)
+    # from 0.099 rad the same turn peaks at 0.102 rad: 0.002 rad beyond the success band too,
+    # priced linearly per share of its width, 1e3 * 0.002 / 0.1
+    z0, z1 = z0 + [0, 0.009, 0, 0], z1 + [0, 0.009, 0, 0]
+    assert b._between(z0, z1)[0] == pytest.approx(1e4 * 0.022 ** 2 + 20.0, rel=1e-9)
+
+
+def test_success_band_term_known_answers(corner, light):
+    """Beyond the success band (0.1 rad, 0.5 rad/s) a predicted state pays ``success_weight``
+    per share of the band's width, on top of the planning bands' squared excess; inside it,
+    nothing.  On by default where the pole turns round inside the band, off on the light plant
+    (where it does not); 0 switches it off, negative is refused."""
+    assert not light[1].balancer.turnaround and light[1].balancer.success_weight == 0.0
+    system, ctrl = corner
+    kw = dict(cart_index=0, pole_index=1, upright=np.pi, track_limit=2.0, dt=0.05)
+    args = (ctrl.step_function, system.ode(), ctrl.levels)
+    on, off = ctrl.balancer, SequenceBalancer(*args, success_weight=0.0, **kw)
+    assert on.success_weight == 1e3
+    z = np.array([[0.3, 0.11, 0.2, 0.55],      # x, phi, x_dot, theta_dot: both beyond
+                  [0.3, -0.11, 0.2, 0.1],      # the angle only
+                  [0.3, 0.09, 0.2, -0.45]])    # inside the success band (not the planning one)
+    extra = on._stage(z, 0.0, kernel=False) - off._stage(z, 0.0, kernel=False)
+    np.testing.assert_allclose(extra, [1e3 * (0.01 / 0.1 + 0.05 / 0.5), 1e3 * 0.01 / 0.1, 0.0],
+                               rtol=1e-9, atol=1e-9)
+    with pytest.raises(ValueError, match="success_weight"):
+        SequenceBalancer(*args, success_weight=-1.0, **kw)
 
 
 def test_lean_stiffness_shifts_the_lean_column_of_the_predictions(corner, shared_mpc):
@@ -313,7 +339,8 @@ def test_without_the_lean_correction_that_plant_is_lost():
     from lsindy_cas.paper.swingup import run_episode
     true, x0 = _heavier_cart_shorter_pole()
     ctrl = SwingUpMPC(systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7), adapt_lean=False,
-                      balance={"method": "sequence", "between_weight": 0.0})
+                      balance={"method": "sequence", "between_weight": 0.0,
+                               "success_weight": 0.0})
     assert not run_episode(ctrl, Plant(true, 0.05), x0).success
 
 
@@ -322,15 +349,17 @@ def test_the_turn_between_samples_is_what_lost_this_start():
     """Family start 31 of 0.6/0.2/1.0, plant cart -10 %, pole mass and length +10 % (as drawn),
     the nominal model's controller.  Without the turn's cost (stop 33's balancer) the pole stays
     inside the success band at every sample of the last 3 s but leaves it between two (the
-    rate turning inside a period): lost.  With it (the default) the episode succeeds and the
-    last 3 s stay inside at every one of the 5 instants per period."""
+    rate turning inside a period): lost.  With it (stop 34's balancer, the success band's own
+    term off) the episode succeeds and the last 3 s stay inside at every one of the 5 instants
+    per period."""
     from lsindy_cas.paper.swingup import random_starts, run_episode, wrap_angle
     true = systems.cart_pendulum(mc=0.6 * 0.9, mp=0.2 * 1.1, L=1.0 * 1.1)
     x0 = random_starts(60, 0)[31]
     model = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
     peaks = {}
     for weight in (0.0, 1.0):
-        ctrl = SwingUpMPC(model, balance={"method": "sequence", "between_weight": weight})
+        ctrl = SwingUpMPC(model, balance={"method": "sequence", "between_weight": weight,
+                                          "success_weight": 0.0})
         ep = run_episode(ctrl, Plant(true, 0.05), x0)
         last = ep.t >= ep.t[-1] - 3.0 - 1e-9
         angle = np.abs(wrap_angle(ep.X[:, 1] - np.pi))
@@ -338,3 +367,24 @@ def test_the_turn_between_samples_is_what_lost_this_start():
         peaks[weight] = (ep.success, angle[last & sample].max(), angle[last].max())
     assert not peaks[0.0][0] and peaks[0.0][1] < 0.1 < peaks[0.0][2]
     assert peaks[1.0][0] and peaks[1.0][2] < 0.1
+
+
+@pytest.mark.slow
+def test_a_turn_outside_the_success_band_is_not_traded_for_a_rate_inside_it():
+    """Held-out start 24 of seed 3 on 0.6/0.2/1.0, nominal, the exact model.  Priced only by
+    the squared excess over its planning bands (0.08 rad, 0.435 rad/s), the balancer let the
+    pole fall from 0.026 rad for ten periods and pushed at 0.0989 rad, -0.345 rad/s: the rate
+    turned 0.1027 rad out (lost), because pushing a period earlier would have put the rate
+    at 0.47 rad/s, beyond its planning band but inside the success band.  With the success
+    band's own term (the default) the episode is held, inside at all 5 instants per period."""
+    from lsindy_cas.paper.swingup import random_starts, run_episode, wrap_angle
+    system = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
+    x0 = random_starts(60, 3)[24]
+    out = {}
+    for weight in (0.0, 1e3):
+        ctrl = SwingUpMPC(system, balance={"method": "auto", "success_weight": weight})
+        ep = run_episode(ctrl, Plant(system, 0.05), x0)
+        last = ep.t >= ep.t[-1] - 3.0 - 1e-9
+        out[weight] = (ep.success, np.abs(wrap_angle(ep.X[last, 1] - np.pi)).max())
+    assert not out[0.0][0] and 0.1 < out[0.0][1] < 0.105
+    assert out[1e3][0] and out[1e3][1] < 0.1

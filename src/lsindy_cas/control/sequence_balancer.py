@@ -12,6 +12,7 @@ Cost of a sequence (every stage cost is non-negative)::
     sum_k  violation_weight * band_excess(z_k)^2 + lean_weight * dt * (phi_k - phi_ref)^2
            + dt * z_k' Q z_k + centre_weight * dt * p_k^2 + push_weight * [u_k != 0]
            + between_weight * violation_weight * max(0, peak_k - angle_band)^2
+           + success_weight * sum_c max(0, |c_k| - success_c) / success_c
     + mode_weight * s_N^2 + z_N' P z_N + centre_weight * (p_N, v0_N)' P_c (p_N, v0_N)
     + escape_weight * violation_weight * max(0, phi*_N - angle_band)^2
 
@@ -21,6 +22,10 @@ diagonal ``state_weights`` (plus ``cart_weight`` on the cart), ``P`` its DARE va
 linearisation, ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below), and
 ``peak_k`` the pole's lean where its rate turns round between samples k-1 and k (0 if it does
 not; :func:`~lsindy_cas.control.upright.turn_excess`): success is judged between them too.
+The last term (on where :attr:`turnaround`) prices leaving the success band itself (``c``: the
+angle, ``peak_k`` among its values, and the rate; ``success`` = (0.1 rad, 0.5 rad/s)) linearly:
+the planning bands' squared excesses alone let a plan keep a rate 0.04 rad/s inside its band at
+the price of a turn 0.003 rad outside the success band (docs/history/control.md, stop 35).
 
 Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
 by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
@@ -45,29 +50,21 @@ the angle band, so the plan avoids parking the pole at rest on top (the hover) w
 costs a band touch (docs/history/control.md).
 
 Viability: on the upright linearisation without cart friction the pole ``(phi, theta_dot)``
-does not depend on the cart, so whether it can be kept in the success band for ever is a 2-D
-question with an exact answer, the min-max value ``J`` of
-:class:`~lsindy_cas.control.viability.ViabilityKernel` (``J <= 0``: viable), built from the
-model's own linearisation.  With ``viability=True`` (default) the plan's end pays
-``w * max(0, J + viability_margin * m*)^2`` and every predicted state ``viability_stage`` times
-the same with ``viability_stage_margin`` (``m*`` the best margin the plant allows, ``w =
-viability_weight * violation_weight``): the plan keeps the pole where it can still be held for
-ever, which gives the pole an infinite horizon (the lean a large kick needs before the catch).
-The kernel knows nothing of the cart, and stopping a drifting cart needs a lean the kernel may
-forbid, so ``w`` fades as ``(1 - cart_urgency)^2`` (the cart's stopping point by leaning, as a
-share of the usable track; ``viability_cart``).  A kernel robust over input gains 0.9-1.1 is
-empty for a 0.89 rad/s plant, so mismatch uses the model's own kernel (``viability_schedule``:
-one kernel per gain factor, picked by the online correction).  Measurements and the settings
-tried: docs/history/control.md.
+does not depend on the cart, so whether it can be kept in the success band for ever has an exact
+answer, the min-max value ``J`` of :class:`~lsindy_cas.control.viability.ViabilityKernel` (``J <=
+0``: viable) on the model's own linearisation.  With ``viability=True`` the plan's end pays ``w *
+max(0, J + viability_margin * m*)^2`` and every predicted state ``viability_stage`` times the same
+with ``viability_stage_margin`` (``m*`` the best margin the plant allows, ``w = viability_weight *
+violation_weight``): the pole gets an infinite horizon.  Stopping a drifting cart needs a lean
+the kernel may forbid, so ``w`` fades as ``(1 - cart_urgency)^2`` (``viability_cart``).  Under
+mismatch each plan uses the kernel of the gain factor nearest the online correction's
+(``viability_schedule``; one robust over gains 0.9-1.1 is empty for a 0.89 rad/s plant).
+Measurements and the settings tried: docs/history/control.md.
 
 The cart's speed ``w = x_dot - (a_x / omega2) theta_dot`` (the centre of mass's, linearised) moves
 with the pushes only.  Where gravity cannot turn the pole back inside the success band (``omega *
 0.1 < kick - 0.5``), pushes strictly alternate and the cart's mean speed is set by the time spent
 between them, not by a lean: the stage cost gets ``speed_weight * dt * (w + x / speed_time)^2``.
-
-The rate band defaults to ``clip(kick / 2 + 0.02, 0.42, 0.48)`` with ``kick`` the model's pole
-rate change over one push of the largest force from rest at the upright: a band narrower than
-one kick would make every reversing push a violation.
 """
 
 from __future__ import annotations
@@ -79,7 +76,7 @@ import numpy as np
 from .._validate import check_bool, check_int, check_real
 from .balancer import PulseBalancer
 from .mpc import wrap_angle
-from .upright import escape_lean, slow_cart, turn_excess
+from .upright import cart_urgency, escape_lean, slow_cart, turn_excess
 from .viability import BAND, kernel_schedule
 
 __all__ = ["SequenceBalancer"]
@@ -97,8 +94,8 @@ class SequenceBalancer(PulseBalancer):
     max_frontier : int
         Most partial sequences kept per depth (beyond it the search is a beam, not proven).
     rate_band : float, optional
-        Band of the predicted pole rate (rad/s); by default from the model's kick (module
-        docstring).
+        Band of the predicted pole rate (rad/s); default ``clip(kick / 2 + 0.02, 0.42, 0.48)``
+        (:attr:`kick`): a band narrower than one kick makes every reversing push a violation.
     violation_weight : float
         Weight of the squared band excesses against the other terms.
     cart_weight : float
@@ -142,6 +139,9 @@ class SequenceBalancer(PulseBalancer):
     between_weight : float
         Factor on the band excess of the pole's turn between two samples (module docstring;
         0: the samples only).
+    success_weight : float, optional
+        Cost of leaving the success band, per share of its width (module docstring; None:
+        ``SUCCESS_WEIGHT`` if :attr:`turnaround`, else 0, off).
     viability_schedule : sequence of float, optional
         Input-gain factors to build one kernel each for at construction; each plan uses the
         one nearest to the online correction's estimate ``1 + gain`` of the pole rate.
@@ -175,6 +175,9 @@ class SequenceBalancer(PulseBalancer):
     SPEED_WEIGHT = 300.0
     #: factor on the escape term there (0.5/0.05/1.2, 60 starts: 26 -> 32 nominal)
     ESCAPE_WEIGHT = 1.0
+    #: the success band's own term, where the pole turns round inside it (stop 35; on the
+    #: light plant, where it does not, mismatched 36 -> 32/47)
+    SUCCESS_WEIGHT = 1e3
 
     def __init__(self, step, ode, levels, *, cart_index, pole_index, upright, track_limit, dt,
                  horizon=28, max_frontier=500, rate_band=None, violation_weight=1e4,
@@ -183,7 +186,8 @@ class SequenceBalancer(PulseBalancer):
                  escape_weight=None, viability=True, viability_weight=1.0,
                  viability_margin=0.25, viability_gains=(1.0,), viability_stage=0.5,
                  viability_schedule=None, viability_stage_margin=0.25, viability_cart=True,
-                 speed_weight=None, speed_time=2.0, between_weight=1.0, **options):
+                 speed_weight=None, speed_time=2.0, between_weight=1.0, success_weight=None,
+                 **options):
         horizon = check_int("horizon", horizon, low=1)
         self.max_frontier = check_int("max_frontier", max_frontier, low=1)
         self.violation_weight = check_real("violation_weight", violation_weight, positive=True)
@@ -192,8 +196,7 @@ class SequenceBalancer(PulseBalancer):
         if rate_band is not None:
             rate_band = check_real("rate_band", rate_band, positive=True)
         if "max_pushes" in options:
-            raise ValueError("max_pushes is an option of the pulse balancer; the sequence "
-                             "balancer plans over all sequences.")
+            raise ValueError("max_pushes is the pulse balancer's; this one takes every sequence.")
         super().__init__(step, ode, levels, cart_index=cart_index, pole_index=pole_index,
                          upright=upright, track_limit=track_limit, dt=dt, horizon=horizon,
                          max_pushes=1, rate_band=0.42 if rate_band is None else rate_band,
@@ -214,9 +217,14 @@ class SequenceBalancer(PulseBalancer):
         self.omega2 = float(self.Ac[2 + self.ip, self.ip])
         self.turn_lean = (self.kick - BAND[1]) / np.sqrt(max(self.omega2, 1e-12))
         self.turnaround = bool(self.turn_lean <= BAND[0])
-        if escape_weight is None:
-            escape_weight = 0.0 if self.turnaround else self.ESCAPE_WEIGHT
-        self.escape_weight = check_real("escape_weight", escape_weight, nonnegative=True)
+        turn = self.turnaround  # the defaults of three terms depend on it (module docstring)
+        for name, value, default in (
+                ("escape_weight", escape_weight, 0.0 if turn else self.ESCAPE_WEIGHT),
+                ("speed_weight", speed_weight, 0.0 if turn else self.SPEED_WEIGHT),
+                ("success_weight", success_weight, self.SUCCESS_WEIGHT if turn else 0.0)):
+            setattr(self, name, check_real(name, default if value is None else value,
+                                           nonnegative=True))
+        self._success_w = self.success_weight / np.asarray(BAND)  # per share of the band
         self.escape_rate = max(0.0, self.kick - self.rate_band)
         # cart speed per pole rate of a push: x_dot - ratio * theta_dot moves only by the lean
         self.ratio = float(self.B[2 + self.ic] / self.B[2 + self.ip])
@@ -236,9 +244,6 @@ class SequenceBalancer(PulseBalancer):
         self.P = self.P + self.centre_weight * T.T @ Pc @ T
         self.Q = self.Q + self.centre_weight * self.dt * T.T @ np.diag([1.0, 0.0]) @ T
         # the cart's speed term (module docstring): w = x_dot - (a_x / omega2) theta_dot
-        if speed_weight is None:
-            speed_weight = 0.0 if self.turnaround else self.SPEED_WEIGHT
-        self.speed_weight = check_real("speed_weight", speed_weight, nonnegative=True)
         tw = np.zeros(4)
         tw[self.ic] = 1.0 / check_real("speed_time", speed_time, positive=True)
         tw[2 + self.ic] = 1.0
@@ -275,6 +280,9 @@ class SequenceBalancer(PulseBalancer):
         lean = z[:, self.ip] - phi_ref
         cost = ((over * over) @ self._band_w + ((z @ self.Q) * z).sum(axis=1)
                 + self._lean_dt * lean * lean)
+        if self.success_weight:  # beyond the success band itself: linear, per share of it
+            out = np.abs(comp[:, :2]) - BAND
+            cost += np.maximum(out, 0.0, out=out) @ self._success_w
         if kernel and self.viability_stage > 0.0:
             cost += self.viability_stage * self._viability(z, self._stage_target)
         return cost
@@ -284,8 +292,11 @@ class SequenceBalancer(PulseBalancer):
         to its ``reps`` successors in ``z`` (:func:`~lsindy_cas.control.upright.turn_excess`)."""
         if self.between_weight == 0.0:
             return 0.0
-        over = turn_excess(prev, z, reps, self.ip, self.dt, self.angle_band)
-        return self.between_weight * self.violation_weight * over * over
+        low = min(self.angle_band, BAND[0])  # the turn's excess over both bands in one call
+        over = turn_excess(prev, z, reps, self.ip, self.dt, low)
+        out = np.maximum(over - (BAND[0] - low), 0.0) * self._success_w[0]
+        over = np.maximum(over - (self.angle_band - low), 0.0)
+        return self.between_weight * (self.violation_weight * over * over + out)
 
     def _terminal(self, z):
         """Terminal cost of error states ``z`` (n, 4): unstable mode, DARE value and escape."""
@@ -306,9 +317,8 @@ class SequenceBalancer(PulseBalancer):
         self._stage_target = self.viability_stage_margin * best
 
     def _viability(self, z, target):
-        """Penalty on ending outside the pole's viability kernel held with the target margin:
-        ``viability_weight * violation_weight * max(0, J(phi, theta_dot) + target)^2`` with
-        ``J`` the kernel's normalised value and ``target = viability_margin * max_margin``."""
+        """``w * max(0, J(phi, theta_dot) + target)^2``, ``J`` the kernel's normalised value
+        (module docstring, "Viability"; ``target``: the margin asked for)."""
         if self.kernel is None or self._kernel_w == 0.0:
             return 0.0
         over = self.kernel.value(z[:, self.ip], z[:, 2 + self.ip]) + target
@@ -316,36 +326,24 @@ class SequenceBalancer(PulseBalancer):
         return self._kernel_w * over * over
 
     def cart_urgency(self, e):
-        """Where the cart would stop, leaning by ``brake_fraction * max_lean`` from now, as a
-        share of the usable track (0: at the centre and still, 1: at the track's margin).
-
-        Uses the cart's slow subsystem ``p = x - ratio * phi``, ``v0 = x_dot - ratio *
-        theta_dot`` (the pushes do not move it): ``|p + v0 |v0| / (2 a)|`` with ``a =
-        brake_fraction * |kappa| * max_lean``.
-        """
-        p = e[self.ic] - self.ratio * e[self.ip]
-        v0 = e[2 + self.ic] - self.ratio * e[2 + self.ip]
-        brake = self.brake_fraction * abs(self.kappa) * self.max_lean
-        return abs(p + v0 * abs(v0) / (2 * brake)) / (self.track_limit - self.track_margin)
+        """:func:`~lsindy_cas.control.upright.cart_urgency` of error state ``e`` (4,), braking by
+        leaning ``brake_fraction * max_lean``."""
+        return cart_urgency(e, self.ic, self.ip, self.ratio, self.brake_fraction
+                            * abs(self.kappa) * self.max_lean, self.track_limit - self.track_margin)
 
     def _escape(self, z):
-        """Penalty on the lean the pole must reach before a push can keep its rate in the band
-        (:func:`~lsindy_cas.control.upright.escape_lean`, with ``kick - rate_band``): its
-        squared excess over ``angle_band``, weighted as a band violation times
-        ``escape_weight``."""
+        """``escape_weight`` times a band violation: the squared excess over ``angle_band`` of
+        :func:`~lsindy_cas.control.upright.escape_lean` (rate ``kick - rate_band``)."""
         if self.escape_weight == 0.0 or self.omega2 <= 0.0:
             return 0.0
         over = escape_lean(z[:, self.ip], z[:, 2 + self.ip], self.escape_rate, self.omega2)
-        over -= self.angle_band
-        np.maximum(over, 0.0, out=over)
+        over = np.maximum(over - self.angle_band, 0.0)
         return self.escape_weight * self.violation_weight * over * over
 
     def reference_lean(self, e):
-        """Lean (rad) that returns the cart to the centre, from the error state ``e``.
-
-        As :meth:`PulseBalancer.reference_lean`, with the cart speed at zero pole rate
-        ``x_dot - ratio * theta_dot`` in place of ``x_dot``: it does not jump with every push.
-        """
+        """Lean (rad) that returns the cart to the centre from error state ``e``: as
+        :meth:`PulseBalancer.reference_lean`, with the cart speed at zero pole rate ``x_dot -
+        ratio * theta_dot`` in place of ``x_dot`` (it does not jump with every push)."""
         v = e[2 + self.ic] - self.ratio * e[2 + self.ip]
         phi = -(self.wn ** 2 * e[self.ic] + 2 * self.zeta * self.wn * v) / self.kappa
         return float(np.clip(phi, -self.max_lean, self.max_lean))

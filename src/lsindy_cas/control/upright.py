@@ -29,9 +29,9 @@ import numpy as np
 
 from .mpc import wrap_angle
 
-__all__ = ["com_speed_step", "escape_lean", "find_upright", "handover_side", "peak_between",
-           "reversal_in_band", "reversal_margin", "slow_cart", "step_kick", "turn_excess",
-           "upright_kick"]
+__all__ = ["cart_urgency", "com_speed_step", "escape_lean", "find_upright", "handover_side",
+           "peak_between", "reversal_in_band", "reversal_margin", "slow_cart", "step_kick",
+           "turn_excess", "upright_kick"]
 
 
 def find_upright(ode, cart_index, pole_index, n_grid=720):
@@ -168,6 +168,18 @@ def peak_between(phi0, rate0, phi1, rate1, dt):
     peak[turns] = np.abs(phi0[turns] - rate0[turns] ** 2 / (2.0 * a[turns]))
     peak[peak <= np.maximum(np.abs(phi0), np.abs(phi1))] = 0.0
     return peak
+
+
+def cart_urgency(e, cart_index, pole_index, ratio, brake, usable):
+    """Where the cart would stop braking at ``brake`` (m/s^2) from error state ``e`` (4,), as a
+    share of the ``usable`` track (m; 0: at the centre and still, 1: at the track's margin).
+
+    Uses the cart's slow subsystem ``p = x - ratio * phi``, ``v0 = x_dot - ratio * theta_dot``
+    (the pushes do not move it, :func:`slow_cart`): ``|p + v0 |v0| / (2 brake)| / usable``.
+    """
+    p = e[cart_index] - ratio * e[pole_index]
+    v0 = e[2 + cart_index] - ratio * e[2 + pole_index]
+    return abs(p + v0 * abs(v0) / (2 * brake)) / usable
 
 
 def turn_excess(prev, z, reps, pole_index, dt, band):
