@@ -178,14 +178,14 @@ def test_adapt_model_defaults_and_bad_values(shared_mpc):
         SwingUpMPC(NoLagrangian(), adapt_model=True)
 
 
-def _mismatched_episode(adapt_model):
+def _mismatched_episode(adapt_model, balance=True):
     """Start 12 of the 60-start family seed on 0.6/0.2/1.0 with its cart 10 % lighter, its pole
     10 % heavier and longer, controlled on the nominal model (issue 16: lost with the input
     gain and lean corrections alone, held with the plant's own equations in the plan)."""
     from lsindy_cas.mpc import SwingUpMPC
     nominal = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
     true = systems.cart_pendulum(mc=0.54, mp=0.22, L=1.1)
-    ctrl = SwingUpMPC(nominal, dt=DT, adapt_model=adapt_model)
+    ctrl = SwingUpMPC(nominal, dt=DT, adapt_model=adapt_model, balance=balance)
     ep = run_episode(ctrl, Plant(true, DT), random_starts(60, 0)[12])
     return ctrl, ep
 
@@ -202,4 +202,7 @@ def test_estimated_coefficients_swing_up_a_mismatched_plant():
 
 @pytest.mark.slow
 def test_the_same_episode_is_lost_without_the_estimate():
-    assert not _mismatched_episode(False)[1].success
+    """With stop 34's sequence balancer; since stop 35 its success band term holds this start
+    without the estimate too."""
+    stop34 = {"method": "auto", "success_weight": 0.0}
+    assert not _mismatched_episode(False, stop34)[1].success
