@@ -325,10 +325,11 @@ def main(argv=None):
     sequence_options = {}
     for name in ("between_weight", "success_weight"):
         value = getattr(args, name)
-        if value is not None and not 0 <= value < float("inf"):
+        if value is None:
+            continue
+        if not 0 <= value < float("inf"):
             ap.error(f"--{name.replace('_', '-')} must be a finite number >= 0")
-        if value is not None:
-            sequence_options[name] = value
+        sequence_options[name] = value
     if args.handover is not None and not 0 <= args.handover < 1.75:
         ap.error("--handover must be in [0, 1.75) m (track limit 2 m, margin 0.25 m)")
     weights = None

@@ -243,7 +243,7 @@ def test_peak_between_samples_known_answers():
     # the balancer's term: the squared excess over its angle band, weighted as a violation
     b = SequenceBalancer.__new__(SequenceBalancer)
     b.ip, b.dt, b.angle_band, b.violation_weight, b.between_weight = 1, 0.05, 0.08, 1e4, 1.0
-    b._success_w = 1e3 / np.array([0.1, 0.5])     # success_weight 1e3; 0.093 is inside 0.1
+    b.success_weight, b._success_w = 1e3, 1e3 / np.array([0.1, 0.5])  # 0.093: inside 0.1
     z0, z1 = np.array([[0.0, 0.09, 0.0, 0.3]]), np.array([[0.0, phi1, 0.0, rate1]])
     assert b._between(z0, z1)[0] == pytest.approx(1e4 * 0.013 ** 2, rel=1e-9)
     # from 0.099 rad the same turn peaks at 0.102 rad: 0.002 rad beyond the success band too,

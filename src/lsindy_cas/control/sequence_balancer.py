@@ -11,7 +11,8 @@ Cost of a sequence (every stage cost is non-negative)::
 
     sum_k  violation_weight * band_excess(z_k)^2 + lean_weight * dt * (phi_k - phi_ref)^2
            + dt * z_k' Q z_k + centre_weight * dt * p_k^2 + push_weight * [u_k != 0]
-           + between_weight * violation_weight * max(0, peak_k - angle_band)^2
+           + between_weight * (violation_weight * max(0, peak_k - angle_band)^2
+                               + success_weight * max(0, peak_k - success_angle) / success_angle)
            + success_weight * sum_c max(0, |c_k| - success_c) / success_c
     + mode_weight * s_N^2 + z_N' P z_N + centre_weight * (p_N, v0_N)' P_c (p_N, v0_N)
     + escape_weight * violation_weight * max(0, phi*_N - angle_band)^2
@@ -22,8 +23,8 @@ diagonal ``state_weights`` (plus ``cart_weight`` on the cart), ``P`` its DARE va
 linearisation, ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below), and
 ``peak_k`` the pole's lean where its rate turns round between samples k-1 and k (0 if it does
 not; :func:`~lsindy_cas.control.upright.turn_excess`): success is judged between them too.
-The last term (on where :attr:`turnaround`) prices leaving the success band itself (``c``: the
-angle, ``peak_k`` among its values, and the rate; ``success`` = (0.1 rad, 0.5 rad/s)) linearly:
+The ``success_weight`` terms (on where :attr:`turnaround`) price leaving the success band itself
+(``c``: the angle and the rate, ``success`` = (0.1 rad, 0.5 rad/s); and the turn's peak) linearly:
 the planning bands' squared excesses alone let a plan keep a rate 0.04 rad/s inside its band at
 the price of a turn 0.003 rad outside the success band (docs/history/control.md, stop 35).
 
@@ -273,15 +274,14 @@ class SequenceBalancer(PulseBalancer):
     def _stage(self, z, phi_ref, kernel=True):
         """Non-negative stage cost of predicted error states ``z`` (n, 4) (``kernel=False``:
         without the viability term, a lower bound the search prunes with first)."""
-        comp = z[:, self._comps]
-        over = np.abs(comp)
-        over -= self._band
+        mag = np.abs(z[:, self._comps])
+        over = mag - self._band
         np.maximum(over, 0.0, out=over)
         lean = z[:, self.ip] - phi_ref
         cost = ((over * over) @ self._band_w + ((z @ self.Q) * z).sum(axis=1)
                 + self._lean_dt * lean * lean)
         if self.success_weight:  # beyond the success band itself: linear, per share of it
-            out = np.abs(comp[:, :2]) - BAND
+            out = mag[:, :2] - BAND
             cost += np.maximum(out, 0.0, out=out) @ self._success_w
         if kernel and self.viability_stage > 0.0:
             cost += self.viability_stage * self._viability(z, self._stage_target)
@@ -294,9 +294,11 @@ class SequenceBalancer(PulseBalancer):
             return 0.0
         low = min(self.angle_band, BAND[0])  # the turn's excess over both bands in one call
         over = turn_excess(prev, z, reps, self.ip, self.dt, low)
-        out = np.maximum(over - (BAND[0] - low), 0.0) * self._success_w[0]
-        over = np.maximum(over - (self.angle_band - low), 0.0)
-        return self.between_weight * (self.violation_weight * over * over + out)
+        cost = np.maximum(over - (self.angle_band - low), 0.0)
+        cost = self.violation_weight * cost * cost
+        if self.success_weight:
+            cost += np.maximum(over - (BAND[0] - low), 0.0) * self._success_w[0]
+        return self.between_weight * cost
 
     def _terminal(self, z):
         """Terminal cost of error states ``z`` (n, 4): unstable mode, DARE value and escape."""
