@@ -161,7 +161,8 @@ def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights
             "max_track_used": max(r["track_used"] for r in rows),
             "forces_in_set": all(r["forces_in_set"] for r in rows),
             "step_ms_median": st["step_ms_median"], "step_ms_p99": st["step_ms_p99"],
-            "n_guard": st["n_guard"], "plan_ms_median": float(np.median(plan_ms)) if plan_ms else None,
+            "n_guard": st["n_guard"], "compiled": bool(ctrl.nlp.jit),
+            "plan_ms_median": float(np.median(plan_ms)) if plan_ms else None,
             "plan_ms_p99": float(np.percentile(plan_ms, 99)) if plan_ms else None,
             "failed_starts": [i for i, r in enumerate(rows) if not r["success"]],
             "failures": {c: sum(r["failure"] == c for r in rows)

@@ -10,14 +10,17 @@ noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
 
     python benchmarks/bench_mpc.py                 # everything (about 8 minutes on 2 cores)
     python benchmarks/bench_mpc.py --episodes 3    # quick look
-    python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+jit,\
-sqp+fatrop,sqp+fatrop+jit --no-robustness --out /tmp/rt  # the real-time comparison (issue 16)
+    python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+nojit,\
+sqp+ipopt-recovery --no-robustness --out /tmp/rt  # the real-time comparison (issue 16)
 
-``sqp+jit`` and ``sqp+fatrop+jit`` compile the NLP's functions with gcc the first time (a
-minute or two; cached in
-``$LSINDY_CACHE_DIR``, see ``lsindy_cas/control/compiled.py``): run it once before timing, or
-read its ``build_s``.  ``slow_steps`` in the JSON counts the steps over 20 ms by what they ran
-(cold start, recovery, warm SQP, balancer): the p99 of 4,000 steps is the 40th slowest.
+The default compiles the NLP's derivatives with gcc where there is one (since stop 36; about
+8 s the first time for a model, cached in ``$LSINDY_CACHE_DIR``, see
+``lsindy_cas/control/compiled.py``; ``compiled`` in the JSON says whether it did): run once
+before timing, or read ``build_s``.  ``sqp+nojit`` is the default uncompiled (as before stop
+36, and where there is no gcc).  ``slow_steps`` in the JSON counts the steps over 20 ms by what
+they ran (cold start, recovery, warm SQP, balancer): the p99 of 4,000 steps is the 40th
+slowest.  ``force_digests`` fingerprints each episode's forces; the script prints how many
+episodes of each configuration applied exactly the forces of the first one.
 
 The configurations given run interleaved (start ``i`` of each before start ``i + 1`` of any), so
 that a change of the machine's load affects them alike.
@@ -30,6 +33,7 @@ p99 on an idle machine.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import platform
@@ -72,7 +76,11 @@ CONFIGS = {
                             "rounding": "lookahead", "cold": "ipopt", "recovery": "ipopt"},
                            "cold starts and recoveries by IPOPT (the default before fatrop)"),
     "sqp+jit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
-                 "jit": True}, "default with the NLP functions compiled (gcc, cached)"),
+                 "jit": True}, "default with the NLP functions compiled, explicitly (gcc, "
+                "cached; the default itself where gcc is, since stop 36)"),
+    "sqp+nojit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                   "jit": False}, "default with the NLP uncompiled (the default before stop 36 "
+                  "and where there is no gcc)"),
     "sqp+fatrop": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                     "cold": "fatrop", "recovery": "fatrop"},
                    "cold starts and recoveries by fatrop (the default, explicitly)"),
@@ -146,6 +154,8 @@ def _metrics(ctrl, options, eps, scenario, build):
         solver={"by_kind": s["by_kind"], "statuses": s["statuses"]},
         slow_steps={"wall": s["slow_steps"], "cpu": s["slow_steps_cpu"]},
         iterations_median=s["iterations_median"], build_s=round(build, 3),
+        compiled=bool(ctrl.nlp.jit),
+        force_digests=[hashlib.sha1(e.forces.tobytes()).hexdigest()[:12] for e in eps],
         failed_starts=[e.x0.round(4).tolist() for e in eps if not e.success])
 
 
@@ -225,6 +235,11 @@ def main(argv=None):
             print(table(rows[-1:]).splitlines()[-1], flush=True)
     print()
     print(table(rows))
+    first = rows[0][1]
+    print(f"\nepisodes with the same forces as {rows[0][0]} ({first['scenario']}): " + ", ".join(
+        f"{n} {sum(a == b for a, b in zip(r['force_digests'], first['force_digests']))}"
+        f"/{len(first['force_digests'])}" for n, r in rows[1:] if r["scenario"] ==
+        first["scenario"]))
     print("\nsteps over 20 ms by kind (wall clock | CPU time):")
     for name, r in rows:
         print(f"  {name} ({r['scenario']}): {r['slow_steps']['wall']} | {r['slow_steps']['cpu']}")

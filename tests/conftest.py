@@ -2,12 +2,19 @@ import functools
 import json
 import importlib
 import importlib.util
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from lsindy_cas import systems
+
+# The controllers compile their NLP by default where gcc is (about 8 s for each new model and
+# options, then cached); the suite builds dozens of controllers, so it runs them uncompiled
+# unless $LSINDY_JIT says otherwise.  The compiled path has its own tests (test_staged.py:
+# the default resolved, the compiled solvers and a closed loop against the uncompiled one).
+os.environ.setdefault("LSINDY_JIT", "0")
 from lsindy_cas.paper.table1 import PAPER_SETUPS
 
 

@@ -55,6 +55,16 @@ def test_jit_option_reaches_the_controller(monkeypatch):
                         lambda model, **kw: seen.update(kw) or {"scenarios": {}})
     assert cli.main(["swingup", "--jit", "--scenarios", "nominal"]) == 0
     assert seen["controller_options"] == {"jit": True}
+    assert cli.main(["swingup", "--no-jit", "--scenarios", "nominal"]) == 0
+    assert seen["controller_options"] == {"jit": False}
+
+
+def test_jit_and_no_jit_together_are_refused(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["swingup", "--jit", "--no-jit"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "not allowed with argument" in err[-1]
 
 
 RELATIVE = {"coords": ["x", "theta"], "actuated": ["x"], "energy_scale": "relative",

@@ -1,29 +1,35 @@
-"""Compiled NLP functions for the MPC's solvers (``jit=True``), cached on disk.
+"""Compiled NLP functions for the MPC's solvers (``jit``, on by default where gcc is), cached.
 
 CasADi evaluates the expanded SX functions of an NLP in its virtual machine at about 10 ns per
 instruction; the swing-up's Hessian of the Lagrangian (40 RK4 intervals) has about 125,000, so
 one evaluation costs about 1 ms, most of an interior-point iteration.  Compiled to C (the system
-compiler at ``-O1``) the same functions run several times faster: fatrop's iteration on the
-swing-up OCP went from 1.5 to 0.36 ms (CPU time, loaded machine, issue 16).  Compiling takes
-long (35-60 s for that Hessian), so the compiled code is kept on disk: the controller's solvers
-(fatrop, IPOPT: the whole solver with its binary embedded, CasADi's serialisation) or functions
-(the SQP's Hessian and Jacobian, handed to ``sqpmethod`` as ``hess_lag``/``jac_fg``) are stored
-under a key hashing everything they depend on (the NLP's own serialisation, the solver and its
-options, the versions of lsindy_cas and CasADi), so a controller built before for the same model
-and options loads in about a second.
+compiler at ``-O1``) they run several times faster: fatrop's iteration on the swing-up OCP went
+from 1.5 to 0.36 ms (CPU time, loaded machine, issue 16).  What is compiled is generated from the
+staged NLP (:mod:`~lsindy_cas.control.staged`: the derivatives loop over one interval's code), so
+the first build of a model compiles in about 8 s (stop 36; from the expanded NLP, before, gcc
+needed 35-60 s).  The compiled code is kept on disk: the controller's solvers (fatrop, IPOPT:
+the whole solver with its binary embedded, CasADi's serialisation) or functions (the SQP's
+Hessian and Jacobian, handed to ``sqpmethod`` as ``hess_lag``/``jac_fg``) are stored under a key
+hashing everything they depend on (the NLP's own serialisation, the solver and its options, the
+versions of lsindy_cas and CasADi), so a controller built before for the same model and options
+loads in about a second.
+
+:func:`resolve_jit` chooses for ``jit=None`` (the controllers' default): compiled when gcc is
+on the PATH, unless ``$LSINDY_JIT`` says otherwise (``0``/``off``: never, ``1``/``on``: always,
+an error without gcc); without gcc and without the variable the controller runs uncompiled,
+with one warning per process.
 
 The folder is that of :mod:`lsindy_cas.symbolic.fcache` (``$LSINDY_CACHE_DIR``; ``off`` disables
 the cache, and then every build compiles).  A missing, unreadable or corrupt file is rebuilt, and
-an unwritable folder only means nothing is saved.  Files are large (about 40 MB for the
-swing-up's three: the SQP's Hessian and Jacobian, fatrop with its NLP) and may be deleted at
-any time.  Nothing is left in the temporary folder: CasADi's C sources and libraries are
+an unwritable folder only means nothing is saved.  Files take about 5 MB per model and options
+(the SQP's Hessian and Jacobian, fatrop with its NLP) and may be deleted at any time.  Nothing
+is left in the temporary folder: CasADi's C sources and libraries are
 removed once loaded (before issue 16 a ``/tmp/lsindy_jit_*`` folder, often with a 2 MB
 library, stayed behind per compile and per load).  Loading also writes an empty ``jit_tmp*.c``
 that CasADi removes when the Function is freed; it goes to the cache folder's ``jit-load``
 (cache off: a per-process ``lsindy_jit_load_*`` folder, removed at exit if every Function was
 freed by then, else left empty).  A Function still alive at exit is never freed, so its file
-stays: empty files older than a day are swept from ``jit-load`` at the next load.
-"""
+stays: empty files older than a day are swept from ``jit-load`` at the next load."""
 
 from __future__ import annotations
 
@@ -42,9 +48,9 @@ import casadi as ca
 from .._io import atomic_write
 from ..symbolic.fcache import cache_dir
 
-__all__ = ["check_compiler", "compiled_function", "compiled_nlpsol"]
+__all__ = ["JIT_ENV", "check_compiler", "compiled_function", "compiled_nlpsol", "resolve_jit"]
 
-FORMAT = 3  # bump when what is compiled, or how, changes
+FORMAT = 4  # bump when what is compiled, or how, changes
 FLAGS = ["-O1"]  # -O0 compiled in 38 s but ran at 0.9 ms per fatrop iteration, -O1: 57 s, 0.36
 
 
@@ -53,7 +59,45 @@ def check_compiler():
     the PATH."""
     if shutil.which("gcc") is None:
         raise ValueError("jit=True needs a C compiler (gcc) on the PATH; install one or pass "
-                         "jit=False.")
+                         f"jit=False (or set {JIT_ENV}=0).")
+
+
+#: environment variable with the default of ``jit=None`` (see :func:`resolve_jit`)
+JIT_ENV = "LSINDY_JIT"
+_ENV_VALUES = {"0": False, "off": False, "false": False, "no": False,
+               "1": True, "on": True, "true": True, "yes": True}
+_warned_no_compiler = False
+
+
+def resolve_jit(jit):
+    """Whether a controller compiles its NLP: ``jit`` if True or False; for None (the default)
+    ``$LSINDY_JIT`` if set (``0``/``off``/``false``/``no`` or ``1``/``on``/``true``/``yes``),
+    else whether gcc is on the PATH (without it: False, and one ``RuntimeWarning`` per process).
+    ValueError for any other value, or for compiling without gcc when asked to."""
+    global _warned_no_compiler
+    if jit is None:
+        env = os.environ.get(JIT_ENV)
+        if env is not None:
+            if env.strip().lower() not in _ENV_VALUES:
+                raise ValueError(f"${JIT_ENV} must be 0/off or 1/on (or unset: compiled where "
+                                 f"gcc is), got {env!r}.")
+            jit = _ENV_VALUES[env.strip().lower()]
+        elif shutil.which("gcc") is None:
+            if not _warned_no_compiler:
+                import warnings
+                warnings.warn("no C compiler (gcc) on the PATH: the controller's NLP runs "
+                              f"uncompiled (step p99 about 1.6 times longer); install gcc, or "
+                              f"set {JIT_ENV}=0 to choose this without the warning.",
+                              RuntimeWarning, stacklevel=3)
+                _warned_no_compiler = True
+            return False
+        else:
+            jit = True
+    if jit not in (False, True):
+        raise ValueError(f"jit must be one of (None, False, True), got {jit!r}")
+    if jit:
+        check_compiler()
+    return bool(jit)
 
 
 def _jit_options():
@@ -215,10 +259,11 @@ def _load_or_build(path, build):
 
 
 def compiled_function(f):
-    """A compiled copy of the SX function ``f`` (same inputs, outputs and names)."""
+    """A compiled copy of the SX or MX function ``f`` (same inputs, outputs and names; an MX
+    graph keeps its structure, e.g. a mapped function is compiled once, in a loop)."""
     def build():
-        sx_in = f.sx_in()
-        return ca.Function(f.name(), sx_in, f.call(sx_in), f.name_in(), f.name_out(),
+        args = f.mx_in() if f.is_a("MXFunction") else f.sx_in()
+        return ca.Function(f.name(), args, f.call(args), f.name_in(), f.name_out(),
                            _jit_options())
     return _load_or_build(_path("function", [f.serialize()]), build)
 

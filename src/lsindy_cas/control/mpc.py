@@ -21,6 +21,7 @@ import numpy as np
 
 from .._validate import check_choice, check_int, check_real
 from .coefficients import CoefficientEstimator
+from .compiled import resolve_jit
 from .correction import InputGainCorrection
 from .lookahead import build_lookahead
 from .ocp import OCP
@@ -132,12 +133,12 @@ class DiscreteInputMPC:
         The ODE as a function of its coefficients, ``(x, u, p) -> xdot``, and their values:
         the relaxed plan then uses :attr:`estimator`'s online estimate of them (and not
         ``adapt_plan``'s gain; :mod:`~lsindy_cas.control.coefficients`).
-    jit : bool
-        Compile the NLP's functions to C with the system compiler (gcc) and run the solvers
-        on the compiled code (:mod:`~lsindy_cas.control.compiled`): the same iterates, each
-        several times faster.  The first controller for a model (and these options) compiles
-        for a minute or more; the code is cached on disk (``$LSINDY_CACHE_DIR``), so later
-        ones build in about 2 s.
+    jit : bool, optional
+        Compile the NLP's derivatives to C with gcc (:mod:`~lsindy_cas.control.compiled`): the
+        same iterates to rounding, each several times faster (step p99 under 20 ms).  Default
+        (None): compiled where gcc is, unless ``$LSINDY_JIT=0``.  The first controller for a model
+        (and options) compiles for about 8 s; cached on disk (``$LSINDY_CACHE_DIR``), later
+        ones build in about 1 s.
 
     Attributes
     ----------
@@ -162,7 +163,7 @@ class DiscreteInputMPC:
                  max_iter=7, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
                  lookahead_penalty=None, recovery=None, cold=None,
                  recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5,
-                 adapt_plan=True, solve_balanced=False, jit=False, coefficients=None):
+                 adapt_plan=True, solve_balanced=False, jit=None, coefficients=None):
         param_ode, p0 = (None, None) if coefficients is None else coefficients
         self.ocp = ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt,
                              horizon, state_lb, state_ub, input_weight, n_substeps, "force_set",
@@ -187,9 +188,8 @@ class DiscreteInputMPC:
         self.n_state, self.n_input, self.input_index = ocp.n_state, ocp.n_input, ocp.input_index
         self.step_function, self.reference = ocp.step, np.zeros(ocp.n_state)
         max_iter = check_int("max_iter", max_iter, low=1)
-        tol, jit = check_real("tol", tol, positive=True), check_choice("jit", jit, (False, True))
-        if recover_after is None:
-            # continue: 3 (10: mismatch start 15 of seed 0 ran 34 steps on stale plans)
+        tol, jit = check_real("tol", tol, positive=True), resolve_jit(jit)
+        if recover_after is None:  # continue: 3 (10: seed 0 mismatch start 15 ran 34 stale steps)
             recover_after = 3 if self.recovery == "continue" else 1
         self.recover_after = check_int("recover_after", recover_after, low=0)
         self.adapt, self.adapt_forgetting, self.adapt_max_gain = bool(adapt), forgetting, max_gain

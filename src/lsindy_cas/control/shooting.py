@@ -17,6 +17,7 @@ import numpy as np
 
 from .compiled import check_compiler, compiled_function, compiled_nlpsol
 from .fastcall import NumericFunction
+from .staged import StageTerms, staged_nlp
 from .watchdog import Watchdog
 
 __all__ = ["ROBUST_SOLVERS", "SOLVERS", "MultipleShootingNLP", "check_solver_available",
@@ -106,17 +107,13 @@ class MultipleShootingNLP:
         self.jit = bool(jit)
         if self.jit:
             check_compiler()
-        step, n_state = ocp.step, ocp.n_state
-        horizon, dt, input_weight = ocp.horizon, ocp.dt, ocp.input_weight
-        stage_residual, terminal_residual = ocp.stage_residual, ocp.terminal_residual
+        n_state, horizon = ocp.n_state, ocp.horizon
         levels, state_lb, state_ub = ocp.levels, ocp.state_lb, ocp.state_ub
         self.n_state, self.horizon, self.relaxation = n_state, horizon, relaxation
         self.inexact_tol = float(inexact_tol)
         self.levels = np.asarray(levels, dtype=float)
         n_c = self.levels.size if relaxation == "poc" else 1
         self.n_control = n_c
-        scale = ocp.scale
-        level_dm = ca.DM(self.levels)
         bounded = [i for i in range(n_state)
                    if np.isfinite(state_lb[i]) or np.isfinite(state_ub[i])]
         n_s = 1 if bounded else 0  # one slack per stage softens every state bound
@@ -138,51 +135,21 @@ class MultipleShootingNLP:
         lbg, ubg, rows = [], [], []
         residuals = []  # for the Gauss-Newton Hessian
 
-        def soft_bounds(x, sk):
-            """Rows lb_i <= x_i + s and x_i - s <= ub_i for the bounded states."""
-            out = []
-            for i in bounded:
-                out += [x[i] + sk, x[i] - sk]
-                lbg.extend([state_lb[i], -np.inf])
-                ubg.extend([np.inf, state_ub[i]])
-            return out
-
+        self._terms = terms = StageTerms(ocp, self.levels, relaxation, tuple(bounded), n_s,
+                                         slack_weight)
         for k in range(horizon + 1):
             first = len(lbg)
-            stage_g = []
+            kind = "terminal" if k == horizon else "first" if k == 0 else "mid"
             if k < horizon:
-                c = cs[k]
-                if relaxation == "poc":
-                    force = ca.dot(level_dm, c)
-                    penalty = ca.dot(c, ca.DM((self.levels / scale) ** 2))
-                else:
-                    force = c[0]
-                    penalty = (c[0] / scale) ** 2
-                u = ocp.full_input((1 + gain) * force)
-                z += [c, ss[k], xs[k + 1]]
-                nxt = step(xs[k], u) if ocp.param_ode is None else ocp.param_step(xs[k], u, coef)
-                gap = xs[k + 1] - nxt  # fatrop wants x_{k+1} - F, HPIPM F - x_{k+1}
-                stage_g.append(-gap if solver.startswith("sqp") else gap)
-                lbg.extend([0.0] * n_state)
-                ubg.extend([0.0] * n_state)
-                if relaxation == "poc":
-                    stage_g.append(ca.sum1(c) - 1)
-                    lbg.append(0.0)
-                    ubg.append(0.0)
-                r_k = stage_residual(xs[k] - ref)
-                f += dt * (ca.sumsqr(r_k) + input_weight * penalty)
-                if k > 0:
-                    residuals.append(np.sqrt(dt) * r_k)
-                    stage_g += soft_bounds(xs[k], ss[k])
-                if relaxation == "continuous":
-                    residuals.append(np.sqrt(dt * input_weight) * c[0] / scale)
-                if n_s and k > 0:
-                    f += slack_weight * (ca.sum1(ss[k]) + ca.sumsqr(ss[k]))
-                    residuals.append(np.sqrt(slack_weight) * ss[k])
-            else:
-                r_k = terminal_residual(xs[k] - ref)
-                f += ca.sumsqr(r_k)
-                residuals.append(r_k)
+                z += [cs[k], ss[k], xs[k + 1]]
+            stage = (cs[k], ss[k], xs[k + 1]) if k < horizon else (None, None, None)
+            stage_g, lb, ub, costs, res = terms.terms(kind, xs[k], *stage, gain, ref, coef,
+                                                      negate_gap=solver.startswith("sqp"))
+            for term in costs:
+                f += term
+            residuals += res
+            lbg += lb
+            ubg += ub
             g += stage_g
             rows.append(np.arange(first, len(lbg)))
         nlp = {"x": ca.vertcat(*z), "p": p, "f": f, "g": ca.vertcat(*g)}
@@ -212,7 +179,8 @@ class MultipleShootingNLP:
         nu = [n_c] + [n_c + n_s] * (horizon - 1) + [0]
         self.solver_name = solver
         self._nlp, self._nu, self._ng_path, self._tol = nlp, nu, ng_path, tol
-        self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol)
+        sqp = solver.startswith("sqp")
+        self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol, negate_gap=sqp)
         # the sign of each constraint row in the NLP as built: the gaps are negated for HPIPM
         self._gap_rows = np.concatenate([r[:n_state] for r in rows[:-1]])
         # cold starts (first step of an episode) and recoveries after a failed step need many
@@ -237,17 +205,26 @@ class MultipleShootingNLP:
                     sign[self._gap_rows] = -1.0
                     g = ca.DM(sign) * g
                 robust[name] = (self._make_solver(dict(nlp, g=g), name, nu, ng_path, cold,
-                                                  tol), flip)
+                                                  tol, negate_gap=sqp and not flip), flip)
             self.solvers[kind], self._flip[kind] = robust[name]
             self._plugin[kind] = name
 
-    def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol, jit=None):
+    def _make_solver(self, nlp, solver, nu, ng_path, max_iter, tol, jit=None, negate_gap=True):
+        """The solver ``solver`` of ``nlp``; compiled (``jit``) it is generated from the staged
+        NLP (:func:`~lsindy_cas.control.staged.staged_nlp`, gaps negated as ``negate_gap``)."""
         n, N = self.n_state, self.horizon
         # a diverged iterate (NaN in the cost) is a failed solve the controller recovers from
         # (recorded in stats.statuses); CasADi's own warning only made the output noisy
         common = {"expand": True, "print_time": False, "error_on_fail": False,
                   "show_eval_warnings": False}
-        nlpsol = compiled_nlpsol if (self.jit if jit is None else jit) else ca.nlpsol
+        jit = self.jit if jit is None else jit
+        nlpsol, staged = ca.nlpsol, None
+        if jit:  # compiled from the staged graph: loops over one interval (see staged.py)
+            n_coef = 0 if self.ocp.param_ode is None else self.ocp.param_values.size
+            staged = staged_nlp(self._terms, self.n_var, self.n_control, N, n_coef, negate_gap)
+            common["expand"] = False
+            if solver in ("ipopt", "fatrop"):
+                nlp, nlpsol = staged, compiled_nlpsol
         if solver == "ipopt":
             opts = dict(common, ipopt={
                 "print_level": 0, "sb": "yes", "max_iter": max_iter, "tol": tol,
@@ -271,11 +248,12 @@ class MultipleShootingNLP:
             opts["convexify_strategy"] = "eigen-clip"
         else:
             opts["hess_lag"] = self._gn_hessian
-        if self.jit:  # HPIPM cannot be serialised: compile the SQP's functions instead
-            plain = ca.nlpsol("mpc", "sqpmethod", nlp, opts)
+        if jit:  # HPIPM cannot be serialised: compile the SQP's functions instead
+            plain = ca.nlpsol("mpc", "sqpmethod", staged, opts)
             opts["hess_lag"] = compiled_function(opts.get("hess_lag")
                                                  or plain.get_function("nlp_hess_l"))
             opts["jac_fg"] = compiled_function(plain.get_function("nlp_jac_fg"))
+            opts["expand"] = True  # the rest (line search) on the SX NLP
         return ca.nlpsol("mpc", "sqpmethod", nlp, opts)
 
     # --- packing -------------------------------------------------------------------------
