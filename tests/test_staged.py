@@ -90,23 +90,22 @@ needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None,
 
 
 @needs_gcc
-@pytest.mark.parametrize("solver, kind", [("sqp", "warm"), ("sqp", "cold"), ("ipopt", "warm")])
-def test_compiled_staged_solvers_solve_like_the_uncompiled_ones(tmp_path, monkeypatch, solver,
-                                                                 kind):
-    """``jit=True`` (the staged NLP compiled) reaches the uncompiled solvers' solution from the
-    same guess: the same algorithm on functions equal to rounding."""
+def test_compiled_staged_solvers_solve_like_the_uncompiled_ones(tmp_path, monkeypatch):
+    """``jit=True`` (the staged NLP compiled: the SQP's Hessian and Jacobian, the whole IPOPT
+    solver of cold starts) reaches the uncompiled solvers' solution from the same guess: the
+    same algorithm on functions equal to rounding."""
     monkeypatch.setenv("LSINDY_CACHE_DIR", str(tmp_path))
     ocp = _ocp(4, True)
-    plain = MultipleShootingNLP(ocp, "continuous", solver, max_iter=30, tol=1e-8,
-                                cold_solver="ipopt", recover_solver="ipopt")
-    fast = MultipleShootingNLP(ocp, "continuous", solver, max_iter=30, tol=1e-8, jit=True,
-                               cold_solver="ipopt", recover_solver="ipopt")
+    plain, fast = (MultipleShootingNLP(ocp, "continuous", "sqp", max_iter=30, tol=1e-8, jit=jit,
+                                       cold_solver="ipopt", recover_solver="ipopt")
+                   for jit in (False, True))
     x0 = np.array([0.2, 2.5, -0.3, 0.8])
     guess = (np.zeros(plain.n_var), np.zeros(plain.lbg.size), np.zeros(plain.n_var))
-    a = plain.solve(x0, *guess, kind=kind)
-    b = fast.solve(x0, *guess, kind=kind)
-    assert a[0] == b[0] == "converged"
-    np.testing.assert_allclose(b[1], a[1], atol=1e-7)
+    for kind in ("warm", "cold"):
+        a = plain.solve(x0, *guess, kind=kind)
+        b = fast.solve(x0, *guess, kind=kind)
+        assert a[0] == b[0] == "converged"
+        np.testing.assert_allclose(b[1], a[1], atol=1e-7)
 
 
 def test_the_default_compiles_where_gcc_is(monkeypatch):
