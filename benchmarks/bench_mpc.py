@@ -87,7 +87,7 @@ CONFIGS = {
     "sqp+fatrop+jit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                         "cold": "fatrop", "recovery": "fatrop", "jit": True},
                        "fatrop cold starts and recoveries, NLP functions compiled: the "
-                       "real-time configuration"),
+                       "default where gcc is, explicitly"),
     "sqp+continuous+lookahead": ({"solver": "sqp", "relaxation": "continuous",
                                   "rounding": "lookahead", "balance": False},
                                  "lookahead everywhere (no balancer)"),
