@@ -161,3 +161,22 @@ def test_default_controller_is_compiled_and_acts_as_the_uncompiled_one(tmp_path,
     b = run_episode(plain, plant, x0, t_end=2.0)
     np.testing.assert_array_equal(a.forces, b.forces)
     assert set(np.unique(a.forces)) <= {-10.0, 0.0, 10.0} and np.any(a.forces != 0)
+
+
+@needs_gcc
+def test_a_compiler_that_fails_leaves_the_controller_uncompiled(tmp_path, monkeypatch):
+    """gcc refusing the generated code (here: an option it does not know) is one warning, and
+    the NLP is built uncompiled and solves; no scratch folder is left behind."""
+    import glob
+    import tempfile
+    from lsindy_cas.control import compiled
+    monkeypatch.setenv("LSINDY_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(compiled, "FLAGS", ["-fno-such-option-lsindy"])
+    before = set(glob.glob(f"{tempfile.gettempdir()}/lsindy_jit_*"))
+    with pytest.warns(RuntimeWarning, match="C compiler failed.*runs uncompiled"):
+        nlp = MultipleShootingNLP(_ocp(3, True), "continuous", "sqp", max_iter=30, tol=1e-8,
+                                  jit=True, cold_solver="ipopt", recover_solver="ipopt")
+    assert nlp.jit is False
+    guess = (np.zeros(nlp.n_var), np.zeros(nlp.lbg.size), np.zeros(nlp.n_var))
+    assert nlp.solve(np.array([0.2, 2.5, -0.3, 0.8]), *guess, kind="cold")[0] == "converged"
+    assert set(glob.glob(f"{tempfile.gettempdir()}/lsindy_jit_*")) <= before

@@ -48,7 +48,7 @@ import casadi as ca
 from .._io import atomic_write
 from ..symbolic.fcache import cache_dir
 
-__all__ = ["JIT_ENV", "check_compiler", "compiled_function", "compiled_nlpsol", "resolve_jit"]
+__all__ = ["JIT_ENV", "CompileError", "check_compiler", "compiled_function", "compiled_nlpsol", "resolve_jit"]
 
 FORMAT = 4  # bump when what is compiled, or how, changes
 FLAGS = ["-O1"]  # -O0 compiled in 38 s but ran at 0.9 ms per fatrop iteration, -O1: 57 s, 0.36
@@ -60,6 +60,23 @@ def check_compiler():
     if shutil.which("gcc") is None:
         raise ValueError("jit=True needs a C compiler (gcc) on the PATH; install one or pass "
                          f"jit=False (or set {JIT_ENV}=0).")
+
+
+class CompileError(RuntimeError):
+    """The C compiler failed on the generated code (the controller then runs uncompiled)."""
+
+
+def _compile(build):
+    """``build()``, with CasADi's error for a failed compilation as :class:`CompileError`."""
+    try:
+        return build()
+    except RuntimeError as exc:
+        text = str(exc)
+        if "Compilation failed" not in text:
+            raise
+        tried = text[text.find("Tried"):].splitlines()[0] if "Tried" in text else ""
+        raise CompileError(f"the C compiler failed on the controller's generated code "
+                           f"({tried or 'see its message above'})") from None
 
 
 #: environment variable with the default of ``jit=None`` (see :func:`resolve_jit`)
@@ -236,7 +253,11 @@ def _load_or_build(path, build):
         if f is not None:
             return f
     with _scratch() as folder:  # saved inside: the embedded library is read from the folder
-        f = build()
+        try:
+            f = _compile(build)
+        except CompileError:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
         target = None
         for where in (path, Path(folder) / "function.casadi"):
             if where is None:
@@ -253,7 +274,7 @@ def _load_or_build(path, build):
         f = _load(target)
     if f is None:  # pragma: no cover - the file just written did not load back
         with _scratch():
-            f = build()
+            f = _compile(build)
     shutil.rmtree(folder, ignore_errors=True)
     return f
 

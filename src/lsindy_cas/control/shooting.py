@@ -15,7 +15,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .compiled import check_compiler, compiled_function, compiled_nlpsol
+from .compiled import CompileError, check_compiler, compiled_function, compiled_nlpsol
 from .fastcall import NumericFunction
 from .staged import StageTerms, staged_nlp
 from .watchdog import Watchdog
@@ -179,33 +179,47 @@ class MultipleShootingNLP:
         nu = [n_c] + [n_c + n_s] * (horizon - 1) + [0]
         self.solver_name = solver
         self._nlp, self._nu, self._ng_path, self._tol = nlp, nu, ng_path, tol
-        sqp = solver.startswith("sqp")
-        self.solver = self._make_solver(nlp, solver, nu, ng_path, max_iter, tol, negate_gap=sqp)
         # the sign of each constraint row in the NLP as built: the gaps are negated for HPIPM
         self._gap_rows = np.concatenate([r[:n_state] for r in rows[:-1]])
         # cold starts (first step of an episode) and recoveries after a failed step need many
         # more iterations than warm starts: an interior-point method on the same NLP
         cold = max(10 * max_iter, 300)
         self.max_iters = {"warm": max_iter, "recover": cold, "cold": cold}
-        self.solvers = {"warm": self.solver}
-        self._flip = {"warm": False}  # whether a solver sees the gaps with the other sign
-        self._plugin = {"warm": solver}
         self.watchdog = Watchdog(WATCHDOG_SECONDS)  # for the fatrop solves
         # fatrop loops without end from a guess where a function evaluation fails (NaN) or
         # that is far from dynamically consistent: such a guess is refused (see solve)
         self._fg = NumericFunction(ca.Function("fg", [nlp["x"], p], [nlp["f"], nlp["g"]]))
+        try:
+            self._build_solvers(solver, cold_solver, recover_solver)
+        except CompileError as exc:  # e.g. a compiler that refuses the generated code
+            import warnings
+            warnings.warn(f"{exc}; this controller runs uncompiled.", RuntimeWarning,
+                          stacklevel=3)
+            self.jit = False
+            self._build_solvers(solver, cold_solver, recover_solver)
+
+    def _build_solvers(self, solver, cold_solver, recover_solver):
+        """The warm solver and the robust ones of cold starts and recoveries."""
+        nlp, nu, ng_path, tol = self._nlp, self._nu, self._ng_path, self._tol
+        sqp = solver.startswith("sqp")
+        self.solver = self._make_solver(nlp, solver, nu, ng_path, self.max_iters["warm"], tol,
+                                        negate_gap=sqp)
+        self.solvers = {"warm": self.solver}
+        self._flip = {"warm": False}  # whether a solver sees the gaps with the other sign
+        self._plugin = {"warm": solver}
         robust = {}
         for kind, name in (("cold", cold_solver), ("recover", recover_solver)):
             if name not in robust:
                 # fatrop wants the gaps as x_{k+1} - F: the HPIPM-signed rows negated
-                flip = name == "fatrop" and solver.startswith("sqp")
+                flip = name == "fatrop" and sqp
                 g = nlp["g"]
                 if flip:
-                    sign = np.ones(len(lbg))
+                    sign = np.ones(self.lbg.size)
                     sign[self._gap_rows] = -1.0
                     g = ca.DM(sign) * g
-                robust[name] = (self._make_solver(dict(nlp, g=g), name, nu, ng_path, cold,
-                                                  tol, negate_gap=sqp and not flip), flip)
+                robust[name] = (self._make_solver(dict(nlp, g=g), name, nu, ng_path,
+                                                  self.max_iters["cold"], tol,
+                                                  negate_gap=sqp and not flip), flip)
             self.solvers[kind], self._flip[kind] = robust[name]
             self._plugin[kind] = name
 
