@@ -59,6 +59,15 @@ def test_jit_option_reaches_the_controller(monkeypatch):
     assert seen["controller_options"] == {"jit": False}
 
 
+def test_a_bad_lsindy_jit_is_refused_before_the_identification(monkeypatch, capsys):
+    ran = []
+    monkeypatch.setattr(swingup, "run_swingup", lambda model, **kw: ran.append(kw))
+    monkeypatch.setenv("LSINDY_JIT", "maybe")
+    assert cli.main(["swingup", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert ran == [] and len(err) == 1 and "LSINDY_JIT must be 0/off or 1/on" in err[0]
+
+
 def test_jit_and_no_jit_together_are_refused(capsys):
     with pytest.raises(SystemExit) as exc:
         cli.main(["swingup", "--jit", "--no-jit"])

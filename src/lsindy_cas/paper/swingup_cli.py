@@ -99,8 +99,9 @@ def _scenarios(text):
 
 def _controller_options(args):
     """The :class:`~lsindy_cas.mpc.SwingUpMPC` keyword arguments the options ask for, checked."""
-    from ..control.shooting import SOLVERS
+    from ..control.compiled import resolve_jit
     from ..control.rounding import ROUNDINGS
+    from ..control.shooting import SOLVERS
 
     opts = {}
     solver, rounding = getattr(args, "solver", None), getattr(args, "rounding", None)
@@ -113,8 +114,10 @@ def _controller_options(args):
     tol = getattr(args, "inexact_tol", None)
     if tol is not None:
         opts["inexact_tol"] = check_real("--inexact-tol", tol, positive=True)
-    if getattr(args, "jit", None) is not None:
-        opts["jit"] = args.jit
+    jit = getattr(args, "jit", None)
+    resolve_jit(jit)  # $LSINDY_JIT and the compiler checked before any heavy work
+    if jit is not None:
+        opts["jit"] = jit
     return opts
 
 
