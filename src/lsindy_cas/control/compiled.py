@@ -48,7 +48,8 @@ import casadi as ca
 from .._io import atomic_write
 from ..symbolic.fcache import cache_dir
 
-__all__ = ["JIT_ENV", "CompileError", "check_compiler", "compiled_function", "compiled_nlpsol", "resolve_jit"]
+__all__ = ["JIT_ENV", "CompileError", "check_compiler", "compiled_function", "compiled_nlpsol",
+           "resolve_jit"]
 
 FORMAT = 4  # bump when what is compiled, or how, changes
 FLAGS = ["-O1"]  # -O0 compiled in 38 s but ran at 0.9 ms per fatrop iteration, -O1: 57 s, 0.36

@@ -1,4 +1,4 @@
-"""One stage of the multiple-shooting NLP, written once, and the NLP assembled from stage functions.
+"""One interval of the multiple-shooting NLP, written once, and the NLP built from stage functions.
 
 :class:`StageTerms` gives the constraint rows, their bounds, the cost terms and the Gauss-Newton
 residuals of one control interval.  :class:`~lsindy_cas.control.shooting.MultipleShootingNLP`
