@@ -312,9 +312,10 @@ def main(argv=None):
                     help="SwingUpMPC(handover=) in m for every plant, which needs the sequence "
                          "balancer on each (default: the controller's "
                          "own, 0.6 m where the balancing pushes must alternate, else 0)")
-    ap.add_argument("--adapt-model", action="store_true",
+    ap.add_argument("--adapt-model", nargs="?", const=True, default=False, choices=(True, "stall"),
                     help="SwingUpMPC(adapt_model=True): the swing-up plan on an online estimate "
-                         "of the model's coefficients")
+                         "of the model's coefficients; --adapt-model stall: only once a swing-up "
+                         "has stalled")
     ap.add_argument("--between-weight", type=float,
                     help="the sequence balancers' between_weight (default theirs, 1; 0: the "
                          "pole's turn between samples not priced, stop 33's balancer)")

@@ -175,10 +175,11 @@ class SwingUpMPC(DiscreteInputMPC):
         of the pole's lean, :mod:`~lsindy_cas.control.correction`), used by the sequence
         balancer's predictions.  None: where the sequence balancer is chosen (not on the
         paper plant's pulse balancer).  Needs ``adapt`` (the default).
-    adapt_model : bool, optional
+    adapt_model : bool or "stall", optional
         Whether the relaxed plan uses an online estimate of the model's own coefficients
-        (:mod:`~lsindy_cas.control.coefficients`, read from its Lagrangian; ``estimator``).
-        None (off): on the 60-start family it gained as many episodes as it lost (README).
+        (:mod:`~lsindy_cas.control.coefficients`, read from its Lagrangian; ``estimator``);
+        ``"stall"``: only once the pole has stayed 1 rad or more from the upright for 3 s in a
+        row.  None (off): on the 60-start family ``True`` gained as many as it lost (README).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -257,13 +258,10 @@ class SwingUpMPC(DiscreteInputMPC):
             raise ValueError(f"track_margin must be in [0, track_limit), got {track_margin!r}.")
         self.coords, self.cart = coords, actuated
         ic = coords.index(actuated)
-        ip = 1 - ic
-        ode = model.ode()
+        ip, ode = 1 - ic, model.ode()
         if not isinstance(ode, ca.Function) or ode.size1_in(0) != 4 or ode.size1_in(1) != 2:
             raise ValueError("model.ode() must be a casadi.Function (x (4,), u (2,)) -> xdot.")
-        if upright is None:
-            upright = find_upright(ode, ic, ip)
-        self.upright = float(upright)
+        self.upright = float(find_upright(ode, ic, ip) if upright is None else upright)
         unknown = set(weights or {}) - set(self.default_weights)
         if unknown:
             raise ValueError(f"weights has unknown keys {sorted(unknown)}; known: "
@@ -300,8 +298,7 @@ class SwingUpMPC(DiscreteInputMPC):
                        ca.sqrt(w["position"]) * x[ic] / self.track_limit,
                        ca.sqrt(w["velocity"]) * x[2 + ic], ca.sqrt(w["rate"]) * x[2 + ip],
                        ca.sqrt(w["top_rate"]) * top)
-        lb = np.full(4, -np.inf)
-        ub = np.full(4, np.inf)
+        lb, ub = np.full(4, -np.inf), np.full(4, np.inf)
         lb[ic], ub[ic] = -(self.track_limit - track_margin), self.track_limit - track_margin
         # discrete pushes near the top: keep the pole rate inside a band (rad/s)
         band = w["rate_band_weight"] * ca.fmax(
@@ -324,7 +321,7 @@ class SwingUpMPC(DiscreteInputMPC):
                     raise
                 w["energy"] = 0.0
         self.weights = w
-        if check_choice("adapt_model", adapt_model, (None, False, True)):
+        if check_choice("adapt_model", adapt_model, (None, False, True, "stall")):
             options["coefficients"] = parametric_form(model, coords)[:2]  # ValueError if not
         self.adapt_model = "coefficients" in options
         self.cart_index, self.pole_index = ic, ip
@@ -337,6 +334,9 @@ class SwingUpMPC(DiscreteInputMPC):
                          dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
                          input_weight=w["input"], **options)
         self.plan_gain_index = 2 + ip  # the plan uses the pole's input gain (adapt_plan)
+        if adapt_model == "stall":  # (pole, upright, angle, steps): see CoefficientEstimator
+            self.estimator.stall = (ip, self.upright, 1.0, round(3.0 / dt))
+            self.estimator.reset()
 
     def _before_build(self):
         """The track guard and the balancer(s), from the model's step (DiscreteInputMPC hook)."""

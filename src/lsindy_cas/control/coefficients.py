@@ -140,11 +140,30 @@ class CoefficientEstimator:
         self.input_index, self.n_input = int(input_index), n_input
         self.reset()
 
+    #: ``(pole index, upright angle, angle, steps)``: the plan keeps the prior until the pole
+    #: has stayed ``angle`` rad or more from the upright for ``steps`` updates in a row (a stalled
+    #: swing-up; ``SwingUpMPC(adapt_model="stall")``); None: the plan uses the estimate always
+    stall = None
+
     def reset(self):
         """Back to the prior (call between episodes)."""
         self.coef = self.p0.copy()
         self.cov = np.diag((self.prior * np.abs(self.p0)) ** 2)
         self.n_updates = 0
+        self.released, self._far = self.stall is None, 0
+
+    @property
+    def plan_coef(self):
+        """The coefficients the plan uses: the estimate, or with :attr:`stall` the prior until
+        the swing-up has stalled."""
+        return self.coef if self.released else self.p0
+
+    def _watch(self, x):
+        """Count the updates in a row with the pole far from the upright (:attr:`stall`)."""
+        pole, upright, angle, steps = self.stall
+        off = abs((x[pole] - upright + np.pi) % (2 * np.pi) - np.pi)
+        self._far = self._far + 1 if off >= angle else 0
+        self.released = self._far >= steps
 
     @property
     def std(self):
@@ -160,6 +179,8 @@ class CoefficientEstimator:
         x = np.asarray(x, dtype=float).ravel()
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(x_prev))):
             return
+        if self.stall is not None and not self.released:
+            self._watch(x)
         p_hat, P, p = self.coef, self.cov, self.coef
         for _ in range(self.ITERATIONS):
             pred, J = self._fj(x_prev, u, p)
