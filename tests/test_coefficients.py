@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from lsindy_cas.control.coefficients import CoefficientEstimator, parametric_form
+from lsindy_cas.control.mpc import wrap_angle
 from lsindy_cas.control.ocp import rk4_step
 from lsindy_cas.paper import systems
 from lsindy_cas.paper.swingup import Plant, random_starts, run_episode
@@ -209,8 +210,8 @@ def test_the_same_episode_is_lost_without_the_estimate():
 
 
 def test_the_stall_gate_holds_the_prior_until_the_pole_stays_far_from_the_top():
-    """``stall = (pole, upright, angle, steps)``: the plan's coefficients are the prior until
-    ``steps`` updates in a row end with the pole ``angle`` rad or more from the upright (the
+    """``stall = (far, steps)``: the plan's coefficients are the prior until ``steps`` updates
+    in a row end in a state ``far`` accepts (here: the pole 1 rad or more from the upright, the
     angle wrapped), then the estimate for the rest of the episode; a state near the top restarts
     the count, and ``reset`` closes the gate again."""
     nominal = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
@@ -218,7 +219,7 @@ def test_the_stall_gate_holds_the_prior_until_the_pole_stays_far_from_the_top():
     ode, p0, _ = parametric_form(nominal, ["x", "theta"])
     est = CoefficientEstimator(rk4_step(ode, 4, 2, DT, 1), p0, input_index=0)
     assert est.released and est.plan_coef is est.coef  # no gate: the estimate at once
-    est.stall = (1, np.pi, 1.0, 3)
+    est.stall = (lambda s: abs(wrap_angle(s[1] - np.pi)) >= 1.0, 3)
     est.reset()
     true_step = rk4_step(true.ode(), 4, 2, DT, 1)
     far, near = np.array([0.0, 0.3, 0.0, 0.0]), np.array([0.0, -np.pi + 0.5, 0.0, 0.0])
@@ -238,7 +239,12 @@ def test_the_stall_gate_holds_the_prior_until_the_pole_stays_far_from_the_top():
 
 def test_adapt_model_stall_sets_the_gate(shared_mpc):
     ctrl = shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}, adapt_model="stall")
-    assert ctrl.estimator.stall == (1, ctrl.upright, 1.0, 60) and not ctrl.estimator.released
+    far, steps = ctrl.estimator.stall
+    assert steps == 60 and not ctrl.estimator.released  # 3 s at dt = 0.05
+    # the pole (index 1) 1 rad or more from the upright, the angle wrapped
+    for off, want in ((1.01, True), (0.99, False), (-1.01, True), (2 * np.pi - 0.5, False)):
+        assert bool(far(np.array([0.3, ctrl.upright + off, 0.0, 0.0]))) is want, off
+    assert not far(np.array([ctrl.upright + 3.0, ctrl.upright, 0.0, 0.0]))  # the cart ignored
     assert shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}, adapt_model=True).estimator.stall is None
 
 

@@ -178,8 +178,8 @@ class SwingUpMPC(DiscreteInputMPC):
     adapt_model : bool or "stall", optional
         Whether the relaxed plan uses an online estimate of the model's own coefficients
         (:mod:`~lsindy_cas.control.coefficients`, read from its Lagrangian; ``estimator``);
-        ``"stall"``: only once the pole has stayed 1 rad or more from the upright for 3 s in a
-        row.  None (off): on the 60-start family ``True`` gained as many as it lost (README).
+        ``"stall"``: once the pole has stayed >= 1 rad from the upright for 3 s.  None (off):
+        on the 60-start family ``True`` gained as many as it lost (README).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -256,8 +256,7 @@ class SwingUpMPC(DiscreteInputMPC):
         track_margin = check_real("track_margin", track_margin, nonnegative=True)
         if not track_margin < self.track_limit:
             raise ValueError(f"track_margin must be in [0, track_limit), got {track_margin!r}.")
-        self.coords, self.cart = coords, actuated
-        ic = coords.index(actuated)
+        self.coords, self.cart, ic = coords, actuated, coords.index(actuated)
         ip, ode = 1 - ic, model.ode()
         if not isinstance(ode, ca.Function) or ode.size1_in(0) != 4 or ode.size1_in(1) != 2:
             raise ValueError("model.ode() must be a casadi.Function (x (4,), u (2,)) -> xdot.")
@@ -334,8 +333,9 @@ class SwingUpMPC(DiscreteInputMPC):
                          dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
                          input_weight=w["input"], **options)
         self.plan_gain_index = 2 + ip  # the plan uses the pole's input gain (adapt_plan)
-        if adapt_model == "stall":  # (pole, upright, angle, steps): see CoefficientEstimator
-            self.estimator.stall = (ip, self.upright, 1.0, round(3.0 / dt))
+        if adapt_model == "stall":  # the estimate once the pole stayed >= 1 rad off for 3 s
+            up = self.upright
+            self.estimator.stall = (lambda s: abs(wrap_angle(s[ip] - up)) >= 1.0, round(3 / dt))
             self.estimator.reset()
 
     def _before_build(self):

@@ -140,9 +140,9 @@ class CoefficientEstimator:
         self.input_index, self.n_input = int(input_index), n_input
         self.reset()
 
-    #: ``(pole index, upright angle, angle, steps)``: the plan keeps the prior until the pole
-    #: has stayed ``angle`` rad or more from the upright for ``steps`` updates in a row (a stalled
-    #: swing-up; ``SwingUpMPC(adapt_model="stall")``); None: the plan uses the estimate always
+    #: ``(far, steps)``: the plan keeps the prior until ``far(x)`` has held for ``steps``
+    #: updates in a row (a stalled swing-up; ``SwingUpMPC(adapt_model="stall")``: the pole 1 rad
+    #: or more from the upright for 3 s); None: the plan uses the estimate always
     stall = None
 
     def reset(self):
@@ -159,10 +159,9 @@ class CoefficientEstimator:
         return self.coef if self.released else self.p0
 
     def _watch(self, x):
-        """Count the updates in a row with the pole far from the upright (:attr:`stall`)."""
-        pole, upright, angle, steps = self.stall
-        off = abs((x[pole] - upright + np.pi) % (2 * np.pi) - np.pi)
-        self._far = self._far + 1 if off >= angle else 0
+        """Count the updates in a row that end in a state :attr:`stall` calls far."""
+        far, steps = self.stall
+        self._far = self._far + 1 if far(x) else 0
         self.released = self._far >= steps
 
     @property
