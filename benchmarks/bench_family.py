@@ -150,7 +150,9 @@ def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights
                      "plant_kick": kick(true.params["mc"], true.params["L"]),
                      "plant_true_kick": k_true, "failure": cls, **peaks,
                      "kernel_margin": kernel.max_margin, "reachable": not kernel.empty,
-                     "forces_in_set": bool(np.all(np.isin(ep.forces, (-FORCE, 0.0, FORCE))))})
+                     "forces_in_set": bool(np.all(np.isin(ep.forces, (-FORCE, 0.0, FORCE)))),
+                     # adapt_model="stall": when the plan took up the estimate (s), None: never
+                     "model_released_at": released_at(ctrl)})
     st = ctrl.stats.summary()
     t_up = [r["time_to_upright"] for r in rows]
     k, n = sum(r["success"] for r in rows), len(rows)
@@ -168,6 +170,13 @@ def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights
             "failures": {c: sum(r["failure"] == c for r in rows)
                          for c in ("track", "unreachable", "fell", "never_up", "margin")},
             "episodes_detail": rows}
+
+
+def released_at(ctrl):
+    """Time (s) at which the plan took up the coefficient estimate in the last episode
+    (``adapt_model``; 0 for ``True``), None if it did not."""
+    at = None if ctrl.estimator is None else ctrl.estimator.released_at
+    return None if at is None else at * DT
 
 
 def wilson(k, n, z=1.96):

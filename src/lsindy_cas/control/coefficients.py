@@ -151,18 +151,23 @@ class CoefficientEstimator:
         self.cov = np.diag((self.prior * np.abs(self.p0)) ** 2)
         self.n_updates = 0
         self.released, self._far = self.stall is None, 0
+        self.released_at = 0 if self.released else None
 
-    @property
-    def plan_coef(self):
-        """The coefficients the plan uses: the estimate, or with :attr:`stall` the prior until
-        the swing-up has stalled."""
-        return self.coef if self.released else self.p0
+    def plan(self, gain):
+        """The plan's parameters (:meth:`MultipleShootingNLP.solve`): the estimate, which carries
+        the input gain, or with :attr:`stall` until the swing-up has stalled the prior and the
+        online correction's ``gain`` -- the plan the controller makes without an estimator."""
+        if self.released:
+            return {"gain": 0.0, "coef": self.coef}
+        return {"gain": gain, "coef": self.p0}
 
     def _watch(self, x):
         """Count the updates in a row that end in a state :attr:`stall` calls far."""
         far, steps = self.stall
         self._far = self._far + 1 if far(x) else 0
         self.released = self._far >= steps
+        if self.released:
+            self.released_at = self.n_updates + 1  # the updates (steps) until it opened
 
     @property
     def std(self):

@@ -407,8 +407,7 @@ class DiscreteInputMPC:
         raised, e.g. NaN in a function evaluation of a bad model)."""
         try:
             gain = self.correction.gain[self.plan_gain_index] if self.adapt_plan else 0.0
-            plan = ({"gain": gain} if self.estimator is None  # else the coefficients carry it
-                    else {"gain": 0.0, "coef": self.estimator.plan_coef})
+            plan = {"gain": gain} if self.estimator is None else self.estimator.plan(gain)
             return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, ref=self.reference, **plan),
                     self.nlp.last_status)
         except RuntimeError:
