@@ -9,7 +9,8 @@ from __future__ import annotations
 import math
 import numbers
 
-__all__ = ["check_bool", "check_choice", "check_int", "check_real", "relative_energy"]
+__all__ = ["check_bool", "check_choice", "check_int", "check_real", "check_state",
+           "relative_energy"]
 
 
 def check_int(name: str, value, *, low: int | None = None, high: int | None = None,
@@ -62,6 +63,20 @@ def check_choice(name: str, value, options):
     if value not in tuple(options):
         raise ValueError(f"{name} must be one of {tuple(options)}, got {value!r}")
     return value
+
+
+def check_state(x, n_state: int):
+    """A finite state vector ``[q, q_dot]`` of ``n_state`` entries, as a float array."""
+    import numpy as np
+    try:
+        x = np.asarray(x, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise TypeError("x must be a sequence of numbers (the state [q, q_dot]).") from None
+    if x.size != n_state:
+        raise ValueError(f"x must have {n_state} entries [q, q_dot], got {x.size}.")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"x must be finite, got {x.tolist()}.")
+    return x
 
 
 def relative_energy(model) -> bool:

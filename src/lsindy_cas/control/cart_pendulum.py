@@ -322,6 +322,9 @@ class SwingUpMPC(DiscreteInputMPC):
         self.weights = w
         if check_choice("adapt_model", adapt_model, (None, False, True, "stall")):
             options["coefficients"] = parametric_form(model, coords)[:2]  # ValueError if not
+        if adapt_model == "stall":  # the estimate once the pole stayed >= 1 rad off for 3 s
+            up = self.upright  # until then the NLP of the model as given (DiscreteInputMPC)
+            options["gate"] = (lambda s: abs(wrap_angle(s[ip] - up)) >= 1.0, round(3 / dt))
         self.adapt_model = "coefficients" in options
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)
@@ -333,10 +336,6 @@ class SwingUpMPC(DiscreteInputMPC):
                          dt=dt, horizon=horizon, state_lb=lb, state_ub=ub,
                          input_weight=w["input"], **options)
         self.plan_gain_index = 2 + ip  # the plan uses the pole's input gain (adapt_plan)
-        if adapt_model == "stall":  # the estimate once the pole stayed >= 1 rad off for 3 s
-            up = self.upright
-            self.estimator.stall = (lambda s: abs(wrap_angle(s[ip] - up)) >= 1.0, round(3 / dt))
-            self.estimator.reset()
 
     def _before_build(self):
         """The track guard and the balancer(s), from the model's step (DiscreteInputMPC hook)."""

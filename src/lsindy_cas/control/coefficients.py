@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from .._validate import check_real
+from .._validate import check_int, check_real
 from ..mechanics.parametric import ParametricDynamics
 from .fastcall import NumericFunction
 
@@ -119,6 +119,8 @@ class CoefficientEstimator:
         state, position rows weighted as 1e-3 sent the estimate after the noise).
     max_change : float
         Each coefficient stays within ``max_change * |p0|`` of ``p0``.
+    stall : (callable, int), optional
+        :attr:`stall`.
     """
 
     #: Gauss-Newton iterations of each measurement update (the iterated EKF): on noise-free
@@ -126,7 +128,8 @@ class CoefficientEstimator:
     #: 20 transitions where the plain EKF (1) was 6e-3 off (its early linearisation lingers)
     ITERATIONS = 3
 
-    def __init__(self, step, p0, *, input_index, prior=0.5, noise=1e-2, max_change=0.5):
+    def __init__(self, step, p0, *, input_index, prior=0.5, noise=1e-2, max_change=0.5,
+                 stall=None):
         self.p0 = np.asarray(p0, dtype=float).ravel()
         self.prior = check_real("prior", prior, positive=True)
         self.max_change = check_real("max_change", max_change, positive=True)
@@ -138,11 +141,16 @@ class CoefficientEstimator:
         nxt = step(x, u, p)
         self._fj = NumericFunction(ca.Function("FJ", [x, u, p], [nxt, ca.jacobian(nxt, p)]))
         self.input_index, self.n_input = int(input_index), n_input
+        if stall is not None:
+            far, steps = stall
+            if not callable(far):
+                raise TypeError(f"stall[0] must be callable (state -> bool), got {far!r}.")
+            self.stall = (far, check_int("stall[1]", steps, low=1))
         self.reset()
 
-    #: ``(far, steps)``: the plan keeps the prior until ``far(x)`` has held for ``steps``
+    #: ``(far, steps)``: the plan keeps the model as given until ``far(x)`` has held for ``steps``
     #: updates in a row (a stalled swing-up; ``SwingUpMPC(adapt_model="stall")``: the pole 1 rad
-    #: or more from the upright for 3 s); None: the plan uses the estimate always
+    #: or more from the upright for 3 s), and the estimate after; None: the estimate always
     stall = None
 
     def reset(self):
@@ -155,11 +163,9 @@ class CoefficientEstimator:
 
     def plan(self, gain):
         """The plan's parameters (:meth:`MultipleShootingNLP.solve`): the estimate, which carries
-        the input gain, or with :attr:`stall` until the swing-up has stalled the prior and the
-        online correction's ``gain`` -- the plan the controller makes without an estimator."""
-        if self.released:
-            return {"gain": 0.0, "coef": self.coef}
-        return {"gain": gain, "coef": self.p0}
+        the input gain, or with :attr:`stall` until the swing-up has stalled the online
+        correction's ``gain`` and the model's own coefficients, as without an estimator."""
+        return {"gain": 0.0, "coef": self.coef} if self.released else {"gain": gain}
 
     def _watch(self, x):
         """Count the updates in a row that end in a state :attr:`stall` calls far."""

@@ -16,18 +16,18 @@ re-solves with fatrop or IPOPT, or continues the SQP (``recovery="continue"``).
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
-from .._validate import check_choice, check_int, check_real
+from .._validate import check_choice, check_int, check_real, check_state
 from .coefficients import CoefficientEstimator
 from .compiled import resolve_jit
 from .correction import InputGainCorrection
 from .lookahead import build_lookahead
 from .ocp import OCP
 from .rounding import ROUNDINGS, weights_from_value
-from .shooting import (ROBUST_SOLVERS, SOLVERS, MultipleShootingNLP, check_solver_available,
-                       default_robust_solver)
+from .shooting import SOLVERS, MultipleShootingNLP, robust_solvers
 from .stats import MPCStats
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "wrap_angle"]
@@ -133,6 +133,11 @@ class DiscreteInputMPC:
         The ODE as a function of its coefficients, ``(x, u, p) -> xdot``, and their values:
         the relaxed plan then uses :attr:`estimator`'s online estimate of them (and not
         ``adapt_plan``'s gain; :mod:`~lsindy_cas.control.coefficients`).
+    gate : (callable, int), optional
+        With ``coefficients``: the estimate enters the plan only once ``gate[0](x)`` has held
+        for ``gate[1]`` steps in a row (:attr:`CoefficientEstimator.stall`); until then the
+        step solves the NLP of the model as given (built as well): the same forces as without
+        ``coefficients``.
     jit : bool, optional
         Compile the NLP's derivatives to C with gcc (:mod:`~lsindy_cas.control.compiled`): the
         same iterates to rounding, each several times faster (step p99 under 20 ms).  Default
@@ -145,7 +150,7 @@ class DiscreteInputMPC:
     ocp : OCP
         The problem each step solves (:class:`~lsindy_cas.control.ocp.OCP`).
     nlp : MultipleShootingNLP
-        Its relaxed transcription and solvers.
+        Its relaxed transcription and solvers (with a ``gate``: those the last step solved).
     correction : InputGainCorrection or None
         The online correction (None when ``adapt=False``).
     stats : MPCStats
@@ -163,7 +168,8 @@ class DiscreteInputMPC:
                  max_iter=7, tol=1e-4, accept_inexact=True, inexact_tol=1e-6,
                  lookahead_penalty=None, recovery=None, cold=None,
                  recover_after=None, adapt=True, adapt_forgetting=0.95, adapt_max_gain=0.5,
-                 adapt_plan=True, solve_balanced=False, jit=None, coefficients=None):
+                 adapt_plan=True, solve_balanced=False, jit=None, coefficients=None,
+                 gate=None):
         param_ode, p0 = (None, None) if coefficients is None else coefficients
         self.ocp = ocp = OCP(ode, levels, input_index, stage_residual, terminal_residual, dt,
                              horizon, state_lb, state_ub, input_weight, n_substeps, "force_set",
@@ -171,14 +177,7 @@ class DiscreteInputMPC:
         self.solver = check_choice("solver", solver, SOLVERS)
         self.relaxation = check_choice("relaxation", relaxation, ("poc", "continuous"))
         self.rounding = check_choice("rounding", rounding, (*ROUNDINGS, "lookahead"))
-        robust = default_robust_solver()
-        self.recovery = check_solver_available("recovery", check_choice(
-            "recovery", robust if recovery is None else recovery, (*ROBUST_SOLVERS, "continue")))
-        self.cold = check_solver_available("cold", check_choice(
-            "cold", robust if cold is None else cold, (*ROBUST_SOLVERS, "warm")))
-        # "continue" keeps IPOPT for its occasional recovery (as measured when it was added)
-        recover_solver = "ipopt" if self.recovery == "continue" else self.recovery
-        cold_solver = recover_solver if self.cold == "warm" else self.cold
+        self.recovery, self.cold, recover_solver, cold_solver = robust_solvers(recovery, cold)
         inexact_tol = check_real("inexact_tol", inexact_tol, positive=True)
         forgetting = check_real("adapt_forgetting", adapt_forgetting)
         if not 0 < forgetting <= 1:
@@ -197,9 +196,11 @@ class DiscreteInputMPC:
         self.correction = (InputGainCorrection(self.step_function, self.input_index,
                                                forgetting=forgetting, max_gain=max_gain)
                            if self.adapt else None)
+        if gate is not None and coefficients is None:
+            raise ValueError("gate needs coefficients (the estimate it lets into the plan).")
         #: online estimate of the model's coefficients for the plan (None: ``coefficients``)
         self.estimator = None if coefficients is None else CoefficientEstimator(
-            ocp.param_step, ocp.param_values, input_index=self.input_index)
+            ocp.param_step, ocp.param_values, input_index=self.input_index, stall=gate)
         self._before_build()  # a subclass's own parts, checked before the heavy build
         self._lookahead = None
         if rounding == "lookahead":
@@ -208,9 +209,12 @@ class DiscreteInputMPC:
             self._rounder = ROUNDINGS["nearest"](self.levels.size)
         else:
             self._rounder = ROUNDINGS[rounding](self.levels.size)
-        self.nlp = MultipleShootingNLP(
-            ocp, self.relaxation, self.solver, max_iter, tol, inexact_tol=inexact_tol,
-            cold_solver=cold_solver, recover_solver=recover_solver, jit=jit)
+        nlp = (lambda o: MultipleShootingNLP(
+            o, self.relaxation, self.solver, max_iter, tol, inexact_tol=inexact_tol,
+            cold_solver=cold_solver, recover_solver=recover_solver, jit=jit))
+        self.nlp = nlp(ocp)  # with a gate: (the model as given, its coefficients estimated)
+        self._nlps = None if gate is None else (
+            nlp(replace(ocp, param_ode=None, param_values=None)), self.nlp)
         self.accept_inexact, self.solve_balanced = bool(accept_inexact), bool(solve_balanced)
         self._rollout = self.step_function.mapaccum(self.horizon)
         self.adapt_plan = bool(adapt_plan) and self.adapt
@@ -238,6 +242,8 @@ class DiscreteInputMPC:
             self.correction.reset()
         if self.estimator is not None:
             self.estimator.reset()
+        if self._nlps is not None:
+            self.nlp = self._nlps[0]
 
     def _weights(self, c):
         """Relaxed level weights (n_levels,) of one stage's control vector."""
@@ -307,17 +313,6 @@ class DiscreteInputMPC:
             return self.correction.gain, self.correction.bias
         return np.zeros(self.n_state), np.zeros(self.n_state)
 
-    def _check_state(self, x):
-        try:
-            x = np.asarray(x, dtype=float).ravel()
-        except (TypeError, ValueError):
-            raise TypeError("x must be a sequence of numbers (the state [q, q_dot]).") from None
-        if x.size != self.n_state:
-            raise ValueError(f"x must have {self.n_state} entries [q, q_dot], got {x.size}.")
-        if not np.all(np.isfinite(x)):
-            raise ValueError(f"x must be finite, got {x.tolist()}.")
-        return x
-
     def __call__(self, x):
         """Solve from state ``x`` (shape (n_state,)) and return the force to apply (a step
         that a subclass's own rule decides returns its level, without a solve unless
@@ -329,7 +324,7 @@ class DiscreteInputMPC:
             Exactly one element of the admissible level set.
         """
         t_start, c_start = time.perf_counter(), time.thread_time()
-        x = self._check_state(x)
+        x = check_state(x, self.n_state)
         if self.correction is not None and self._uses_correction and self._last is not None:
             self.correction.update(*self._last, x)
         if self.estimator is not None and self._last is not None:
@@ -408,6 +403,8 @@ class DiscreteInputMPC:
         try:
             gain = self.correction.gain[self.plan_gain_index] if self.adapt_plan else 0.0
             plan = {"gain": gain} if self.estimator is None else self.estimator.plan(gain)
+            if self._nlps is not None:  # the solve's own NLP (the warm start fits both)
+                self.nlp = self._nlps[self.estimator.released]
             return (*self.nlp.solve(x, z0, lam_g0, lam_x0, kind=kind, ref=self.reference, **plan),
                     self.nlp.last_status)
         except RuntimeError:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from .._validate import check_choice
 from .compiled import CompileError, check_compiler, compiled_function, compiled_nlpsol
 from .fastcall import NumericFunction
 from .staged import StageTerms, staged_nlp
@@ -65,6 +66,20 @@ def check_solver_available(name, value):
         raise ValueError(f"{name}={value!r} needs CasADi's {plugin} plugin, which this CasADi "
                          f"lacks; choose another {name}.")
     return value
+
+
+def robust_solvers(recovery, cold):
+    """``DiscreteInputMPC``'s ``recovery`` and ``cold`` checked (None: the default robust
+    solver), and the NLP's recovery and cold solvers they stand for:
+    ``(recovery, cold, recover_solver, cold_solver)``."""
+    robust = default_robust_solver()
+    recovery = check_solver_available("recovery", check_choice(
+        "recovery", robust if recovery is None else recovery, (*ROBUST_SOLVERS, "continue")))
+    cold = check_solver_available("cold", check_choice(
+        "cold", robust if cold is None else cold, (*ROBUST_SOLVERS, "warm")))
+    # "continue" keeps IPOPT for its occasional recovery (as measured when it was added)
+    recover_solver = "ipopt" if recovery == "continue" else recovery
+    return recovery, cold, recover_solver, recover_solver if cold == "warm" else cold
 
 
 class MultipleShootingNLP:
