@@ -259,9 +259,11 @@ def test_a_gate_needs_coefficients_and_a_callable():
 def test_adapt_model_stall_sets_the_gate(shared_mpc):
     ctrl = shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}, adapt_model="stall")
     far, steps = ctrl.estimator.stall
+    assert ctrl.STALL == (2.0, 3.0)
     assert steps == 60 and not ctrl.estimator.released  # 3 s at dt = 0.05
-    # the pole (index 1) 1 rad or more from the upright, the angle wrapped
-    for off, want in ((1.01, True), (0.99, False), (-1.01, True), (2 * np.pi - 0.5, False)):
+    # the pole (index 1) 2 rad or more from the upright, the angle wrapped
+    for off, want in ((2.01, True), (1.99, False), (-2.01, True), (np.pi, True),
+                      (2 * np.pi - 1.5, False), (2 * np.pi - 2.5, True)):
         assert bool(far(np.array([0.3, ctrl.upright + off, 0.0, 0.0]))) is want, off
     assert not far(np.array([ctrl.upright + 3.0, ctrl.upright, 0.0, 0.0]))  # the cart ignored
     assert shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}, adapt_model=True).estimator.stall is None

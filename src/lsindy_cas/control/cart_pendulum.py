@@ -11,10 +11,8 @@ level, summing to 1), by SQP with HPIPM QPs, then picks one admissible level (by
 lookahead over all discrete sequences of a few intervals, scored against the relaxed plan's
 cost-to-go; or sum-up rounding carried across steps; or plain rounding).  A failed solve falls
 back to the shifted previous plan, is counted in ``stats``, and the next step re-solves with
-fatrop (IPOPT without it).  Near the upright the level comes instead from a pulse balancer
-(:mod:`lsindy_cas.control.balancer`): one 10 N push changes the pole rate by as much as the
-success band is wide, so there the controller plans with the pushes themselves, enumerating
-push sequences on the model linearised at the upright.
+fatrop (IPOPT without it).  Near the upright a balancer (:mod:`~lsindy_cas.control.balancer`,
+:mod:`~lsindy_cas.control.sequence_balancer`) plans with the discrete pushes themselves.
 
 Example
 -------
@@ -178,8 +176,8 @@ class SwingUpMPC(DiscreteInputMPC):
     adapt_model : bool or "stall", optional
         Whether the relaxed plan uses an online estimate of the model's own coefficients
         (:mod:`~lsindy_cas.control.coefficients`, read from its Lagrangian; ``estimator``);
-        ``"stall"``: once the pole has stayed >= 1 rad from the upright for 3 s.  None (off):
-        on the 60-start family ``True`` gained as many as it lost (README).
+        ``"stall"``: once a swing-up has stalled (:attr:`STALL`).  None (off): on the 60-start
+        family ``True`` gained as many as it lost (README).
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -226,6 +224,9 @@ class SwingUpMPC(DiscreteInputMPC):
     #: default ``handover`` (m) where the pole turns round only beyond the balancer's angle
     #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md, stop 31)
     HANDOVER_OFFSET = 0.6
+    #: ``adapt_model="stall"``: a swing-up has stalled once the pole stayed this far (rad) from
+    #: the upright, i.e. swung less than 1.14 rad from hanging, for this long (s)
+    STALL = (2.0, 3.0)
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
@@ -322,9 +323,9 @@ class SwingUpMPC(DiscreteInputMPC):
         self.weights = w
         if check_choice("adapt_model", adapt_model, (None, False, True, "stall")):
             options["coefficients"] = parametric_form(model, coords)[:2]  # ValueError if not
-        if adapt_model == "stall":  # the estimate once the pole stayed >= 1 rad off for 3 s
-            up = self.upright  # until then the NLP of the model as given (DiscreteInputMPC)
-            options["gate"] = (lambda s: abs(wrap_angle(s[ip] - up)) >= 1.0, round(3 / dt))
+        if adapt_model == "stall":  # until then the NLP of the model as given
+            (off, sec), up = self.STALL, self.upright
+            options["gate"] = (lambda s: abs(wrap_angle(s[ip] - up)) >= off, round(sec / dt))
         self.adapt_model = "coefficients" in options
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)

@@ -149,7 +149,7 @@ class CoefficientEstimator:
         self.reset()
 
     #: ``(far, steps)``: the plan keeps the model as given until ``far(x)`` has held for ``steps``
-    #: updates in a row (a stalled swing-up; ``SwingUpMPC(adapt_model="stall")``: the pole 1 rad
+    #: updates in a row (a stalled swing-up; ``SwingUpMPC(adapt_model="stall")``: the pole 2 rad
     #: or more from the upright for 3 s), and the estimate after; None: the estimate always
     stall = None
 
