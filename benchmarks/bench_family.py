@@ -53,6 +53,8 @@ QUICK = [0, 1, 4]
 #: ``auto`` (the default, ``balance=True``): the sequence balancer when the model's kick is at
 #: least ``SwingUpMPC.SEQUENCE_KICK``, the pulse balancer otherwise
 BALANCERS = {"auto": True, "pulse": {"method": "pulse"}, "sequence": {"method": "sequence"}}
+#: --adapt-model -> SwingUpMPC(adapt_model=) (None: the controller's default)
+ADAPT_MODEL = {None: None, "stall": "stall", "on": True, "off": False}
 BAND_WIDTH = 1.0  # the success band |theta_dot| < 0.5 rad/s is 1 rad/s wide
 
 
@@ -321,10 +323,10 @@ def main(argv=None):
                     help="SwingUpMPC(handover=) in m for every plant, which needs the sequence "
                          "balancer on each (default: the controller's "
                          "own, 0.6 m where the balancing pushes must alternate, else 0)")
-    ap.add_argument("--adapt-model", nargs="?", const=True, default=False, choices=(True, "stall"),
-                    help="SwingUpMPC(adapt_model=True): the swing-up plan on an online estimate "
-                         "of the model's coefficients; --adapt-model stall: only once a swing-up "
-                         "has stalled")
+    ap.add_argument("--adapt-model", choices=("stall", "on", "off"),
+                    help="SwingUpMPC(adapt_model=): the swing-up plan on an online estimate of "
+                         "the model's coefficients once a swing-up has stalled (stall, the "
+                         "default since stop 37), always (on) or never (off: stop 36's default)")
     ap.add_argument("--between-weight", type=float,
                     help="the sequence balancers' between_weight (default theirs, 1; 0: the "
                          "pole's turn between samples not priced, stop 33's balancer)")
@@ -381,7 +383,7 @@ def main(argv=None):
           "max abs x (m) | step p99 (ms) | plan p99 (ms) | failures nominal / mismatch |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     jobs = [(i, starts, models, balancers, args.seed, not args.no_guard, weights, args.handover,
-             args.adapt_model or None, sequence_options) for i in idx]
+             ADAPT_MODEL[args.adapt_model], sequence_options) for i in idx]
     if args.workers == 1:
         results = (run_plant(*job) for job in jobs)
     else:

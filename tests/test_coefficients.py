@@ -157,13 +157,17 @@ def test_ocp_param_step_at_the_plant_coefficients_is_the_plant_step():
 
 
 def test_adapt_model_defaults_and_bad_values(shared_mpc):
-    # off by default (the paper plant's pulse balancer and the sequence balancer's plants)
+    # by default the estimate waits for a stall (the paper plant's pulse balancer and the
+    # sequence balancer's plants); the step solves the model as given until then
     for plant in ({}, {"mc": 0.8, "mp": 0.2, "L": 0.7}):
-        assert shared_mpc(plant).adapt_model is False
-        assert shared_mpc(plant).estimator is None
-        assert shared_mpc(plant).nlp.coef0 is None
+        ctrl = shared_mpc(plant)
+        assert ctrl.adapt_model == "stall" and ctrl.estimator.stall is not None
+        assert ctrl.nlp.coef0 is None and ctrl._nlps[1].coef0 is not None
+        off = shared_mpc(plant, adapt_model=False)
+        assert off.adapt_model is False and off.estimator is None and off._nlps is None
+        assert off.nlp.coef0 is None
     on = shared_mpc({"mc": 0.8, "mp": 0.2, "L": 0.7}, adapt_model=True)
-    assert on.adapt_model is True and on.estimator is not None
+    assert on.adapt_model is True and on.estimator is not None and on._nlps is None
     from lsindy_cas.mpc import SwingUpMPC
     with pytest.raises(ValueError, match="adapt_model"):
         SwingUpMPC(systems.cart_pendulum(), adapt_model="yes")
@@ -175,8 +179,11 @@ def test_adapt_model_defaults_and_bad_values(shared_mpc):
         def ode(self):
             return systems.cart_pendulum().ode()
 
-    with pytest.raises(ValueError, match="no Lagrangian"):
-        SwingUpMPC(NoLagrangian(), adapt_model=True)
+    for value in (True, "stall"):
+        with pytest.raises(ValueError, match="no Lagrangian"):
+            SwingUpMPC(NoLagrangian(), adapt_model=value, balance=False)
+    # the default on a model whose coefficients cannot be read: off, no error
+    assert SwingUpMPC(NoLagrangian(), balance=False).adapt_model is False
 
 
 def _mismatched_episode(adapt_model, balance=True):
@@ -278,7 +285,7 @@ def test_until_the_gate_opens_the_stall_option_applies_the_default_forces():
     nominal = systems.cart_pendulum(mc=0.7, mp=0.4, L=0.8)
     plant = Plant(systems.cart_pendulum(mc=0.63, mp=0.44, L=0.88), DT)
     forces = []
-    for adapt_model in (None, "stall"):
+    for adapt_model in (False, "stall"):
         ctrl = SwingUpMPC(nominal, dt=DT, adapt_model=adapt_model)
         forces.append(run_episode(ctrl, plant, random_starts(60, 1)[0], t_end=2.5).forces)
     # it solved the NLP of the model as given; the one with the coefficients waits
@@ -299,7 +306,7 @@ def test_a_stalled_swing_up_is_rescued_by_the_estimate():
     nominal = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
     true = systems.cart_pendulum(mc=0.54, mp=0.18, L=1.1)
     x0 = random_starts(60, 2)[5]
-    for adapt_model, up in ((None, False), ("stall", True)):
+    for adapt_model, up in ((False, False), (None, True)):  # None: the default, "stall"
         ctrl = SwingUpMPC(nominal, dt=DT, adapt_model=adapt_model)
         ep = run_episode(ctrl, Plant(true, DT), x0)
         assert bool(ep.success) is up

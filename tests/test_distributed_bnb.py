@@ -123,8 +123,9 @@ def test_estimator_routes_branch_and_bound_to_the_cluster(client, on_workers, mo
 
 
 def test_time_limit_returns_best_so_far_not_proven(client, on_workers, monkeypatch):
-    """Pure noise (every support scores alike: one process needs ~2,000 nodes, 1-2 s, to prove
-    it, far more than one 0.2 s task expands); the driver's clock jumps past the 5 s limit once a
+    """Pure noise (every support scores alike: one process needs ~3,800 nodes, 0.5-2 s, to
+    prove it, far more than one 0.02 s task expands -- with 0.2 s tasks a fast machine proved it
+    before the first result came back); the driver's clock jumps past the 5 s limit once a
     task has brought a winner back: the tasks out are stopped and merged, and the best support
     found so far is returned, marked not proven, with its gap, never better than the optimum."""
     from lsindy_cas.identify.bnb import branch_and_bound
@@ -140,10 +141,10 @@ def test_time_limit_returns_best_so_far_not_proven(client, on_workers, monkeypat
 
     monkeypatch.setattr(distributed_bnb, "_clock", clock)
     monkeypatch.setattr(distributed_bnb._Run, "_merge", merge_then_jump)
-    rng = np.random.default_rng(1)      # k = 4: one process needs ~2,000 nodes (k = 6: ~16,000)
+    rng = np.random.default_rng(1)      # k = 4: one process needs ~3,800 nodes (k = 6: ~9,000)
     A, b = rng.normal(size=(300, 60)), rng.normal(size=300)
     res = distributed_bnb.branch_and_bound_distributed(client, A, b, 4, time_limit=5.0,
-                                                       task_seconds=0.2)
+                                                       task_seconds=0.02)
     assert not res.proven and res.gap > 0 and not res.interrupted and res.tasks >= 1
     optimum = branch_and_bound(A, b, 4)          # one process, proven (test_bnb checks it)
     assert optimum.proven and res.score >= optimum.score - 1e-12

@@ -28,7 +28,7 @@ import numpy as np
 from .._validate import check_choice, check_real, relative_energy
 from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
 from .balancer import PulseBalancer
-from .coefficients import parametric_form
+from .coefficients import resolve_adapt_model
 from .sequence_balancer import SequenceBalancer
 from .track_guard import TrackGuard
 from .upright import find_upright, handover_side, step_kick, upright_kick
@@ -176,8 +176,9 @@ class SwingUpMPC(DiscreteInputMPC):
     adapt_model : bool or "stall", optional
         Whether the relaxed plan uses an online estimate of the model's own coefficients
         (:mod:`~lsindy_cas.control.coefficients`, read from its Lagrangian; ``estimator``);
-        ``"stall"``: once a swing-up has stalled (:attr:`STALL`).  None (off): on the 60-start
-        family ``True`` gained as many as it lost (README).
+        ``"stall"``: once a swing-up has stalled (:attr:`STALL`; until then the model as given,
+        the same forces as False).  None: ``"stall"`` where the model's Lagrangian gives its
+        coefficients, else False.  On the 60-start family ``True`` gained as many as it lost.
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -321,12 +322,11 @@ class SwingUpMPC(DiscreteInputMPC):
                     raise
                 w["energy"] = 0.0
         self.weights = w
-        if check_choice("adapt_model", adapt_model, (None, False, True, "stall")):
-            options["coefficients"] = parametric_form(model, coords)[:2]  # ValueError if not
+        adapt_model, options["coefficients"] = resolve_adapt_model(adapt_model, model, coords)
         if adapt_model == "stall":  # until then the NLP of the model as given
-            (off, sec), up = self.STALL, self.upright
+            (off, sec), up, dt = self.STALL, self.upright, check_real("dt", dt, positive=True)
             options["gate"] = (lambda s: abs(wrap_angle(s[ip] - up)) >= off, round(sec / dt))
-        self.adapt_model = "coefficients" in options
+        self.adapt_model = adapt_model  # False, True or "stall"
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)
         self._parts = (guard, balance, kind, balance_options, track_margin, handover,

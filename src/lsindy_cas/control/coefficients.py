@@ -32,11 +32,11 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from .._validate import check_int, check_real
+from .._validate import check_choice, check_int, check_real
 from ..mechanics.parametric import ParametricDynamics
 from .fastcall import NumericFunction
 
-__all__ = ["CoefficientEstimator", "parametric_form"]
+__all__ = ["CoefficientEstimator", "parametric_form", "resolve_adapt_model"]
 
 
 def _terms(expr):
@@ -95,6 +95,22 @@ def parametric_form(model, coords, *, tol=1e-8, seed=0):
                              "and Rayleigh terms (e.g. friction smoothed differently); its "
                              "coefficients cannot be re-estimated online.")
     return ode, p0, dyn.names
+
+
+def resolve_adapt_model(value, model, coords):
+    """``SwingUpMPC``'s ``adapt_model`` checked and resolved: ``(setting, coefficients)`` with
+    ``coefficients`` :func:`parametric_form`'s ``(ode, p0)`` or None.  None (the default) is
+    ``"stall"`` where the model's coefficients can be re-estimated and False where they cannot;
+    ``True`` or ``"stall"`` on such a model raise its ValueError."""
+    check_choice("adapt_model", value, (None, False, True, "stall"))
+    if value is False:
+        return False, None
+    try:
+        return ("stall" if value is None else value), parametric_form(model, coords)[:2]
+    except ValueError:
+        if value is not None:
+            raise
+        return False, None
 
 
 class CoefficientEstimator:
