@@ -268,7 +268,8 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
                              "rounding": ctrl.rounding, "dt": ctrl.dt, "horizon": ctrl.horizon,
                              "force_set": ctrl.levels.tolist(), "upright": ctrl.upright,
                              "weights": getattr(ctrl, "weights", None),
-                             "build_seconds": round(build_s, 3), "compiled": ctrl.nlp.jit},
+                             "build_seconds": round(build_s, 3), "compiled": ctrl.nlp.jit,
+                             "adapt_model": ctrl.adapt_model},
               "criteria": {"angle_tol": ANGLE_TOL, "rate_tol": RATE_TOL, "window": WINDOW,
                            "t_end": T_END, "track_limit": ctrl.track_limit},
               "noise_std": noise_std, "seed": seed, "scenarios": {}}
@@ -283,6 +284,10 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
                              rng=rng)
             row = ep.summary()
             row["forces_in_set"] = bool(np.all(np.isin(ep.forces, ctrl.levels)))
+            est = getattr(ctrl, "estimator", None)  # adapt_model: when the estimate took over
+            if est is not None:
+                row["model_released_at"] = (None if est.released_at is None
+                                            else round(est.released_at * ctrl.dt, 4))
             if factors is not None:
                 row["plant_factors"] = factors
             eps.append(ep)
