@@ -81,6 +81,9 @@ CONFIGS = {
     "sqp+nojit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                    "jit": False}, "default with the NLP uncompiled (the default before stop 36 "
                   "and where there is no gcc)"),
+    "sqp+no-estimator": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
+                          "adapt_model": False}, "default without the coefficient estimate "
+                         "waiting for a stall (adapt_model=False: the default before stop 37)"),
     "sqp+fatrop": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                     "cold": "fatrop", "recovery": "fatrop"},
                    "cold starts and recoveries by fatrop (the default, explicitly)"),
