@@ -142,8 +142,8 @@ class DiscreteInputMPC:
         Compile the NLP's derivatives to C with gcc (:mod:`~lsindy_cas.control.compiled`): the
         same iterates to rounding, each several times faster (step p99 under 20 ms).  Default
         (None): compiled where gcc is, unless ``$LSINDY_JIT=0``.  The first controller for a model
-        (and options) compiles for about 8 s; cached on disk (``$LSINDY_CACHE_DIR``), later
-        ones build in about 1 s.
+        (and options) compiles for 3-8 s per NLP (two with a ``gate``); cached on disk
+        (``$LSINDY_CACHE_DIR``), later ones build in about 1 s.
 
     Attributes
     ----------

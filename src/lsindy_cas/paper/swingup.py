@@ -257,8 +257,8 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
         log(f"identified model:\n{model}")
     opts = dict(controller_options or {})
     if opts.get("jit") is not False:
-        log("building the controller (its NLP compiled with gcc where there is one: about 8 s "
-            "the first time for a model, later loaded from $LSINDY_CACHE_DIR) ...")
+        log("building the controller (its two NLPs compiled with gcc where there is one: "
+            "5-16 s the first time for a model, later loaded from $LSINDY_CACHE_DIR) ...")
     t0 = time.perf_counter()
     ctrl = SwingUpMPC(model, **opts)
     build_s = time.perf_counter() - t0

@@ -72,8 +72,8 @@ def add_swingup_arguments(parser):
     jit.add_argument("--jit", dest="jit", action="store_const", const=True, default=None,
                      help="compile the controller's NLP derivatives with gcc (the default where "
                           "gcc is on the PATH and $LSINDY_JIT is not 0; an error without gcc): "
-                          "about 8 s the first time for a model, cached in $LSINDY_CACHE_DIR; "
-                          "step p99 ~18 ms instead of ~29 ms")
+                          "5-16 s the first time for a model (two NLPs), cached in "
+                          "$LSINDY_CACHE_DIR; step p99 about 30 % shorter")
     jit.add_argument("--no-jit", dest="jit", action="store_const", const=False,
                      help="run the controller's NLP uncompiled (CasADi's virtual machine)")
     parser.add_argument("--json", metavar="OUT.json", help="write the metrics as JSON")
