@@ -69,6 +69,33 @@ def test_parametric_form_of_a_model_file_with_friction(tmp_path):
         {"x_dot**2": 0.2, "Abs(x_dot)": 0.3, "theta_dot**2": 0.002})
 
 
+def test_the_default_controller_on_a_model_file_with_friction(tmp_path):
+    """The default (``adapt_model="stall"``) on a model with viscous and Coulomb friction: its
+    coefficients' NLP builds beside the model's own, and before a stall the forces are those
+    of ``adapt_model=False``."""
+    import json
+    from lsindy_cas.identify.estimator import LagrangianSINDy
+    from lsindy_cas.mpc import SwingUpMPC
+    path = tmp_path / "friction.json"
+    path.write_text(json.dumps({
+        "coords": ["x", "theta"], "actuated": ["x"],
+        "hamiltonian_terms": {"x_dot**2": 0.5, "theta_dot**2": 0.049, "cos(theta)": -1.3734,
+                              "theta_dot*x_dot*cos(theta)": 0.14},
+        "rayleigh_terms": {"x_dot**2": 0.2, "Abs(x_dot)": 0.3, "theta_dot**2": 0.002}}))
+    model = LagrangianSINDy.load(path)
+    step = rk4_step(model.ode(), 4, 2, DT, 4)
+    forces = []
+    for adapt_model in (False, None):
+        ctrl = SwingUpMPC(model, adapt_model=adapt_model)
+        x, applied = np.array([0.0, 0.2, 0.0, 0.0]), []
+        for _ in range(40):
+            applied.append(ctrl(x))
+            x = np.asarray(step(x, [applied[-1], 0.0])).ravel()
+        forces.append(applied)
+    assert ctrl.adapt_model == "stall" and ctrl._nlps[1].coef0.size == 7
+    assert forces[1] == forces[0] and set(forces[0]) <= {-10.0, 0.0, 10.0}
+
+
 def test_parametric_form_bad_models():
     class NoLagrangian:
         coords = ["x", "theta"]
