@@ -107,7 +107,8 @@ def resolve_adapt_model(value, model, coords):
         return False, None
     try:
         return ("stall" if value is None else value), parametric_form(model, coords)[:2]
-    except ValueError:
+    except (ValueError, TypeError, AttributeError, KeyError, ArithmeticError,
+            NotImplementedError):  # the default must not break a controller that builds
         if value is not None:
             raise
         return False, None
