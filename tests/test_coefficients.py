@@ -48,9 +48,8 @@ def test_parametric_form_of_an_identified_model_reproduces_its_equations():
         assert dict(zip(names, p0))[name] == pytest.approx(value, rel=1e-4), name
 
 
-def test_parametric_form_of_a_model_file_with_friction(tmp_path):
-    """Viscous and Coulomb terms of the Rayleigh function are coefficients too (the smoothed
-    Coulomb force of the model's own ODE, checked at random states inside)."""
+def _friction_model(tmp_path):
+    """A model file with viscous and Coulomb friction in its Rayleigh function, loaded."""
     import json
     from lsindy_cas.identify.estimator import LagrangianSINDy
     path = tmp_path / "friction.json"
@@ -59,7 +58,13 @@ def test_parametric_form_of_a_model_file_with_friction(tmp_path):
         "hamiltonian_terms": {"x_dot**2": 0.5, "theta_dot**2": 0.049, "cos(theta)": -1.3734,
                               "theta_dot*x_dot*cos(theta)": 0.14},
         "rayleigh_terms": {"x_dot**2": 0.2, "Abs(x_dot)": 0.3, "theta_dot**2": 0.002}}))
-    model = LagrangianSINDy.load(path)
+    return LagrangianSINDy.load(path)
+
+
+def test_parametric_form_of_a_model_file_with_friction(tmp_path):
+    """Viscous and Coulomb terms of the Rayleigh function are coefficients too (the smoothed
+    Coulomb force of the model's own ODE, checked at random states inside)."""
+    model = _friction_model(tmp_path)
     ode, p0, names = parametric_form(model, list(model.coords_))
     # L = T - V: the kinetic terms keep their sign, the potential's flips
     lagrangian = dict(zip(names[:4], p0[:4]))
@@ -73,16 +78,8 @@ def test_the_default_controller_on_a_model_file_with_friction(tmp_path):
     """The default (``adapt_model="stall"``) on a model with viscous and Coulomb friction: its
     coefficients' NLP builds beside the model's own, and before a stall the forces are those
     of ``adapt_model=False``."""
-    import json
-    from lsindy_cas.identify.estimator import LagrangianSINDy
     from lsindy_cas.mpc import SwingUpMPC
-    path = tmp_path / "friction.json"
-    path.write_text(json.dumps({
-        "coords": ["x", "theta"], "actuated": ["x"],
-        "hamiltonian_terms": {"x_dot**2": 0.5, "theta_dot**2": 0.049, "cos(theta)": -1.3734,
-                              "theta_dot*x_dot*cos(theta)": 0.14},
-        "rayleigh_terms": {"x_dot**2": 0.2, "Abs(x_dot)": 0.3, "theta_dot**2": 0.002}}))
-    model = LagrangianSINDy.load(path)
+    model = _friction_model(tmp_path)
     step = rk4_step(model.ode(), 4, 2, DT, 4)
     forces = []
     for adapt_model in (False, None):
