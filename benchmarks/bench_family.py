@@ -41,7 +41,8 @@ import numpy as np
 from lsindy_cas import systems
 from lsindy_cas.control.viability import pole_kernel
 from lsindy_cas.mpc import SwingUpMPC
-from lsindy_cas.paper.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
+from lsindy_cas.paper.swingup import (Plant, identify_cart_pendulum, random_starts, released_at,
+                                     run_episode)
 
 DT, FORCE = 0.05, 10.0
 
@@ -172,13 +173,6 @@ def run_cell(model, system, starts, scenario, balance, seed, guard=True, weights
             "failures": {c: sum(r["failure"] == c for r in rows)
                          for c in ("track", "unreachable", "fell", "never_up", "margin")},
             "episodes_detail": rows}
-
-
-def released_at(ctrl):
-    """Time (s) at which the plan took up the coefficient estimate in the last episode
-    (``adapt_model``; 0 for ``True``), None if it did not."""
-    at = None if ctrl.estimator is None else ctrl.estimator.released_at
-    return None if at is None else at * DT
 
 
 def wilson(k, n, z=1.96):

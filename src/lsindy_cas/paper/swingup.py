@@ -33,8 +33,7 @@ from .plant import Plant, mismatched_cart_pendulum, scenario_plant  # noqa: F401
 from .swingup_cli import add_swingup_arguments, run_from_args  # noqa: F401 (importable here)
 
 __all__ = ["Episode", "evaluate", "identify_cart_pendulum", "in_band", "random_starts",
-           "run_episode",
-           "run_swingup", "scenario_stats", "summary_table"]
+           "released_at", "run_episode", "run_swingup", "scenario_stats", "summary_table"]
 
 ANGLE_TOL, RATE_TOL, WINDOW, T_END = 0.1, 0.5, 3.0, 10.0
 SCENARIOS = ("nominal", "mismatch", "noise")
@@ -169,6 +168,14 @@ def run_episode(ctrl, plant, x0, *, t_end=T_END, noise_std=0.0, rng=None):
                    list(ctrl.stats.solve_times[n_solve0:]))
 
 
+def released_at(ctrl):
+    """Time (s) into the last episode at which ``ctrl``'s plan took up its coefficient estimate
+    (``adapt_model``; 0 for ``True``), None if it did not or the controller has no estimator."""
+    est = getattr(ctrl, "estimator", None)
+    at = None if est is None else est.released_at
+    return None if at is None else at * ctrl.dt
+
+
 def random_starts(n, seed=0):
     """Random initial states ``[x, theta, x_dot, theta_dot]`` of the swing-up episodes.
 
@@ -284,10 +291,9 @@ def run_swingup(model=None, *, episodes=20, seed=0, scenarios=SCENARIOS, noise_s
                              rng=rng)
             row = ep.summary()
             row["forces_in_set"] = bool(np.all(np.isin(ep.forces, ctrl.levels)))
-            est = getattr(ctrl, "estimator", None)  # adapt_model: when the estimate took over
-            if est is not None:
-                row["model_released_at"] = (None if est.released_at is None
-                                            else round(est.released_at * ctrl.dt, 4))
+            if getattr(ctrl, "estimator", None) is not None:  # when the estimate took over
+                at = released_at(ctrl)
+                row["model_released_at"] = None if at is None else round(at, 4)
             if factors is not None:
                 row["plant_factors"] = factors
             eps.append(ep)
