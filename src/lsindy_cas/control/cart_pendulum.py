@@ -26,11 +26,11 @@ import casadi as ca
 import numpy as np
 
 from .._validate import check_choice, check_real, relative_energy
-from .mpc import DiscreteInputMPC, MPCStats, wrap_angle
+from .mpc import DiscreteInputMPC, MPCStats
 from .balancer import PulseBalancer
-from .coefficients import resolve_adapt_model
+from .coefficients import resolve_adapt_model, swing_up_gate
 from .sequence_balancer import SequenceBalancer
-from .track_guard import TrackGuard
+from .track_guard import TrackGuard, check_guard_option
 from .upright import find_upright, handover_side, step_kick, upright_kick
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
@@ -176,9 +176,9 @@ class SwingUpMPC(DiscreteInputMPC):
     adapt_model : bool or "stall", optional
         Whether the relaxed plan uses an online estimate of the model's own coefficients
         (:mod:`~lsindy_cas.control.coefficients`, read from its Lagrangian; ``estimator``);
-        ``"stall"``: once a swing-up has stalled (:attr:`STALL`; until then the model as given,
-        the same forces as False).  None: ``"stall"`` where the model's Lagrangian gives its
-        coefficients, else False.  On the 60-start family ``True`` gained as many as it lost.
+        ``"stall"``: once a swing-up has stalled (:attr:`STALL`) or missed the top
+        (:attr:`MISSED`; until then the model as given, the same forces as False).  None:
+        ``"stall"`` where the model's Lagrangian gives its coefficients, else False.
     **options
         Passed to :class:`DiscreteInputMPC` (``solver``, ``relaxation``, ``rounding``,
         ``depth``, ``n_substeps``, ``max_iter``, ``tol``, ``accept_inexact``,
@@ -225,9 +225,11 @@ class SwingUpMPC(DiscreteInputMPC):
     #: default ``handover`` (m) where the pole turns round only beyond the balancer's angle
     #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md, stop 31)
     HANDOVER_OFFSET = 0.6
-    #: ``adapt_model="stall"``: a swing-up has stalled once the pole stayed this far (rad) from
-    #: the upright, i.e. swung less than 1.14 rad from hanging, for this long (s)
+    #: ``adapt_model="stall"``: the estimate is taken up once the pole stayed this far (rad) from
+    #: the upright (swung < 1.14 rad from hanging) for this long (s), a stalled swing-up ...
     STALL = (2.0, 3.0)
+    #: ... or at once when the pole turns round between these angles (rad) from the upright
+    MISSED = (0.4, 1.3)
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,
                  track_limit=2.0, track_margin=0.25, upright=None, actuated=None, weights=None,
@@ -282,13 +284,7 @@ class SwingUpMPC(DiscreteInputMPC):
             # measured to help the pulse balancer's plants (paper plant: no mismatched start lost
             # with fatrop), to hurt the sequence balancer's (MuJoCo light cart: 20/20 -> 16/20)
             w["top_rate"] = 0.0
-        if not isinstance(guard, (bool, dict)):
-            raise TypeError(f"guard must be True, False or a dict of options, got "
-                            f"{type(guard).__name__}.")
-        unknown = set(guard) - {"margin", "factor", "horizon"} if isinstance(guard, dict) else ()
-        if unknown:
-            raise ValueError(f"guard has unknown keys {sorted(unknown)}; known: "
-                             f"['factor', 'horizon', 'margin'].")
+        check_guard_option(guard)
         x = ca.SX.sym("x", 4)
         # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
         half = (x[ip] - self.upright) / 2
@@ -324,8 +320,8 @@ class SwingUpMPC(DiscreteInputMPC):
         self.weights = w
         adapt_model, options["coefficients"] = resolve_adapt_model(adapt_model, model, coords)
         if adapt_model == "stall":  # until then the NLP of the model as given
-            (off, sec), up, dt = self.STALL, self.upright, check_real("dt", dt, positive=True)
-            options["gate"] = (lambda s: abs(wrap_angle(s[ip] - up)) >= off, round(sec / dt))
+            options["gate"] = swing_up_gate(ip, self.upright, check_real("dt", dt, positive=True),
+                                            self.STALL, self.MISSED)
         self.adapt_model = adapt_model  # False, True or "stall"
         self.cart_index, self.pole_index = ic, ip
         # built by _before_build, after the model's step and before the NLP (bad options first)

@@ -36,7 +36,7 @@ from .._validate import check_choice, check_int, check_real
 from ..mechanics.parametric import ParametricDynamics
 from .fastcall import NumericFunction
 
-__all__ = ["CoefficientEstimator", "parametric_form", "resolve_adapt_model"]
+__all__ = ["CoefficientEstimator", "parametric_form", "resolve_adapt_model", "swing_up_gate"]
 
 
 def _terms(expr):
@@ -114,6 +114,24 @@ def resolve_adapt_model(value, model, coords):
         return False, None
 
 
+def swing_up_gate(pole_index, upright, dt, stall, missed):
+    """``DiscreteInputMPC``'s ``gate`` for a cart-pendulum's swing-up: ``(far, steps, miss)``.
+
+    ``stall = (angle, seconds)``: the pole stayed ``angle`` rad or more from the upright for
+    ``seconds``; ``missed = (low, high)``: the pole turned round (its rate changed sign between
+    two steps) between ``low`` and ``high`` rad from the upright -- it reached up towards the top
+    and fell back short of it, a missed approach (None: only the stall).
+    """
+    ip, up = int(pole_index), float(upright)
+    lean = (lambda s: abs((s[ip] - up + np.pi) % (2 * np.pi) - np.pi))
+    far = (lambda s: lean(s) >= stall[0])
+    miss = None
+    if missed is not None:
+        low, high = missed
+        miss = (lambda s0, s: s0[2 + ip] * s[2 + ip] < 0 and low < lean(s) < high)
+    return far, round(stall[1] / dt), miss
+
+
 class CoefficientEstimator:
     """Extended Kalman filter on the model's constant coefficients (module docstring).
 
@@ -138,6 +156,8 @@ class CoefficientEstimator:
         Each coefficient stays within ``max_change * |p0|`` of ``p0``.
     stall : (callable, int), optional
         :attr:`stall`.
+    miss : callable, optional
+        :attr:`miss` (only with ``stall``).
     """
 
     #: Gauss-Newton iterations of each measurement update (the iterated EKF): on noise-free
@@ -146,7 +166,7 @@ class CoefficientEstimator:
     ITERATIONS = 3
 
     def __init__(self, step, p0, *, input_index, prior=0.5, noise=1e-2, max_change=0.5,
-                 stall=None):
+                 stall=None, miss=None):
         self.p0 = np.asarray(p0, dtype=float).ravel()
         self.prior = check_real("prior", prior, positive=True)
         self.max_change = check_real("max_change", max_change, positive=True)
@@ -163,12 +183,19 @@ class CoefficientEstimator:
             if not callable(far):
                 raise TypeError(f"stall[0] must be callable (state -> bool), got {far!r}.")
             self.stall = (far, check_int("stall[1]", steps, low=1))
+        if miss is not None and (stall is None or not callable(miss)):
+            raise TypeError(f"miss must be callable ((state, next state) -> bool) and come with "
+                            f"stall, got {miss!r}.")
+        self.miss = miss
         self.reset()
 
     #: ``(far, steps)``: the plan keeps the model as given until ``far(x)`` has held for ``steps``
     #: updates in a row (a stalled swing-up; ``SwingUpMPC(adapt_model="stall")``: the pole 2 rad
     #: or more from the upright for 3 s), and the estimate after; None: the estimate always
     stall = None
+    #: ``miss(x_prev, x) -> bool``: with :attr:`stall`, the plan takes up the estimate also at the
+    #: first transition this calls a missed approach (:func:`swing_up_gate`); None: only the stall
+    miss = None
 
     def reset(self):
         """Back to the prior (call between episodes)."""
@@ -184,11 +211,13 @@ class CoefficientEstimator:
         correction's ``gain`` and the model's own coefficients, as without an estimator."""
         return {"gain": 0.0, "coef": self.coef} if self.released else {"gain": gain}
 
-    def _watch(self, x):
-        """Count the updates in a row that end in a state :attr:`stall` calls far."""
+    def _watch(self, x_prev, x):
+        """Count the updates in a row that end in a state :attr:`stall` calls far; open at
+        ``steps`` of them or at a transition :attr:`miss` calls a missed approach."""
         far, steps = self.stall
         self._far = self._far + 1 if far(x) else 0
-        self.released = self._far >= steps
+        self.released = self._far >= steps or bool(self.miss is not None
+                                                   and self.miss(x_prev, x))
         if self.released:
             self.released_at = self.n_updates + 1  # the updates (steps) until it opened
 
@@ -207,7 +236,7 @@ class CoefficientEstimator:
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(x_prev))):
             return
         if self.stall is not None and not self.released:
-            self._watch(x)
+            self._watch(np.asarray(x_prev, dtype=float).ravel(), x)
         p_hat, P, p = self.coef, self.cov, self.coef
         for _ in range(self.ITERATIONS):
             pred, J = self._fj(x_prev, u, p)

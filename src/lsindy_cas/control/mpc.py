@@ -133,11 +133,11 @@ class DiscreteInputMPC:
         The ODE as a function of its coefficients, ``(x, u, p) -> xdot``, and their values:
         the relaxed plan then uses :attr:`estimator`'s online estimate of them (and not
         ``adapt_plan``'s gain; :mod:`~lsindy_cas.control.coefficients`).
-    gate : (callable, int), optional
+    gate : (callable, int) or (callable, int, callable), optional
         With ``coefficients``: the estimate enters the plan only once ``gate[0](x)`` has held
-        for ``gate[1]`` steps in a row (:attr:`CoefficientEstimator.stall`); until then the
-        step solves the NLP of the model as given (built as well): the same forces as without
-        ``coefficients``.
+        for ``gate[1]`` steps in a row (:attr:`CoefficientEstimator.stall`) or ``gate[2](x_prev,
+        x)`` held once (``miss``); until then the step solves the NLP of the model as given
+        (built as well): the same forces as without ``coefficients``.
     jit : bool, optional
         Compile the NLP's derivatives to C with gcc (:mod:`~lsindy_cas.control.compiled`): the
         same iterates to rounding, each several times faster (step p99 under 20 ms).  Default
@@ -196,11 +196,13 @@ class DiscreteInputMPC:
         self.correction = (InputGainCorrection(self.step_function, self.input_index,
                                                forgetting=forgetting, max_gain=max_gain)
                            if self.adapt else None)
-        if gate is not None and coefficients is None:
-            raise ValueError("gate needs coefficients (the estimate it lets into the plan).")
+        if gate is not None and (coefficients is None or len(gate) not in (2, 3)):
+            raise ValueError("gate needs coefficients (the estimate it lets into the plan) and "
+                             "is (far, steps) or (far, steps, miss).")
+        stall, miss = (None, None) if gate is None else (tuple(gate[:2]), (*gate[2:], None)[0])
         #: online estimate of the model's coefficients for the plan (None: ``coefficients``)
         self.estimator = None if coefficients is None else CoefficientEstimator(
-            ocp.param_step, ocp.param_values, input_index=self.input_index, stall=gate)
+            ocp.param_step, ocp.param_values, input_index=self.input_index, stall=stall, miss=miss)
         self._before_build()  # a subclass's own parts, checked before the heavy build
         self._lookahead = None
         if rounding == "lookahead":

@@ -27,7 +27,18 @@ import numpy as np
 from .._validate import check_real
 from .fastcall import NumericFunction
 
-__all__ = ["TrackGuard"]
+__all__ = ["TrackGuard", "check_guard_option"]
+
+
+def check_guard_option(guard):
+    """``SwingUpMPC``'s ``guard``: True, False or a dict of :class:`TrackGuard`'s options."""
+    if not isinstance(guard, (bool, dict)):
+        raise TypeError(f"guard must be True, False or a dict of options, got "
+                        f"{type(guard).__name__}.")
+    unknown = set(guard) - {"margin", "factor", "horizon"} if isinstance(guard, dict) else ()
+    if unknown:
+        raise ValueError(f"guard has unknown keys {sorted(unknown)}; known: "
+                         f"['factor', 'horizon', 'margin'].")
 
 
 class TrackGuard:
