@@ -228,7 +228,8 @@ class SwingUpMPC(DiscreteInputMPC):
     #: ``adapt_model="stall"``: the estimate is taken up once the pole stayed this far (rad) from
     #: the upright (swung < 1.14 rad from hanging) for this long (s), a stalled swing-up ...
     STALL = (2.0, 3.0)
-    #: ... or at once when the pole turns round between these angles (rad) from the upright
+    #: ... or at once when the pole turns round between these angles (rad) from the upright on a
+    #: swing the plan had reaching the top (a missed approach, :func:`.coefficients.swing_up_gate`)
     MISSED = (0.4, 1.3)
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,

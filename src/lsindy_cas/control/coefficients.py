@@ -118,17 +118,29 @@ def swing_up_gate(pole_index, upright, dt, stall, missed):
     """``DiscreteInputMPC``'s ``gate`` for a cart-pendulum's swing-up: ``(far, steps, miss)``.
 
     ``stall = (angle, seconds)``: the pole stayed ``angle`` rad or more from the upright for
-    ``seconds``; ``missed = (low, high)``: the pole turned round (its rate changed sign between
-    two steps) between ``low`` and ``high`` rad from the upright -- it reached up towards the top
-    and fell back short of it, a missed approach (None: only the stall).
+    ``seconds``.  ``missed = (low, high)``: a missed approach -- the plan made at the previous
+    state had the pole rise on to within ``low`` rad of the upright without turning round, and
+    the plant's pole turned round (its rate changed sign) between ``low`` and ``high`` rad from
+    it: the model said this swing reaches the top and it fell short (None: only the stall).
     """
     ip, up = int(pole_index), float(upright)
     lean = (lambda s: abs((s[ip] - up + np.pi) % (2 * np.pi) - np.pi))
     far = (lambda s: lean(s) >= stall[0])
-    miss = None
-    if missed is not None:
-        low, high = missed
-        miss = (lambda s0, s: s0[2 + ip] * s[2 + ip] < 0 and low < lean(s) < high)
+    if missed is None:
+        return far, round(stall[1] / dt), None
+    low, high = missed
+
+    def miss(s0, s, predicted):
+        rate = s0[2 + ip]
+        if predicted is None or not (rate * s[2 + ip] < 0 and low < lean(s) < high):
+            return False
+        for p in predicted:  # the plan's own swing: to the top, or turning round first
+            if p[2 + ip] * rate <= 0:
+                return False
+            if lean(p) < low:
+                return True
+        return False
+
     return far, round(stall[1] / dt), miss
 
 
@@ -184,8 +196,8 @@ class CoefficientEstimator:
                 raise TypeError(f"stall[0] must be callable (state -> bool), got {far!r}.")
             self.stall = (far, check_int("stall[1]", steps, low=1))
         if miss is not None and (stall is None or not callable(miss)):
-            raise TypeError(f"miss must be callable ((state, next state) -> bool) and come with "
-                            f"stall, got {miss!r}.")
+            raise TypeError(f"miss must be callable ((state, next state, plan) -> bool) and "
+                            f"come with stall, got {miss!r}.")
         self.miss = miss
         self.reset()
 
@@ -193,8 +205,9 @@ class CoefficientEstimator:
     #: updates in a row (a stalled swing-up; ``SwingUpMPC(adapt_model="stall")``: the pole 2 rad
     #: or more from the upright for 3 s), and the estimate after; None: the estimate always
     stall = None
-    #: ``miss(x_prev, x) -> bool``: with :attr:`stall`, the plan takes up the estimate also at the
-    #: first transition this calls a missed approach (:func:`swing_up_gate`); None: only the stall
+    #: ``miss(x_prev, x, predicted) -> bool``: with :attr:`stall`, the plan takes up the estimate
+    #: also at the first transition this calls a missed approach (``predicted``: the states the
+    #: plan made at ``x_prev`` predicted, or None; :func:`swing_up_gate`); None: only the stall
     miss = None
 
     def reset(self):
@@ -211,13 +224,13 @@ class CoefficientEstimator:
         correction's ``gain`` and the model's own coefficients, as without an estimator."""
         return {"gain": 0.0, "coef": self.coef} if self.released else {"gain": gain}
 
-    def _watch(self, x_prev, x):
+    def _watch(self, x_prev, x, predicted):
         """Count the updates in a row that end in a state :attr:`stall` calls far; open at
         ``steps`` of them or at a transition :attr:`miss` calls a missed approach."""
         far, steps = self.stall
         self._far = self._far + 1 if far(x) else 0
         self.released = self._far >= steps or bool(self.miss is not None
-                                                   and self.miss(x_prev, x))
+                                                   and self.miss(x_prev, x, predicted))
         if self.released:
             self.released_at = self.n_updates + 1  # the updates (steps) until it opened
 
@@ -226,17 +239,18 @@ class CoefficientEstimator:
         """Current standard deviation of each coefficient."""
         return np.sqrt(np.diag(self.cov))
 
-    def update(self, x_prev, force, x):
+    def update(self, x_prev, force, x, predicted=None):
         """One filter step on the measured transition ``x_prev --force--> x`` (the measurement
         update iterated :attr:`ITERATIONS` times, re-linearised at each new estimate); a
-        transition the model cannot evaluate (non-finite) is skipped."""
+        transition the model cannot evaluate (non-finite) is skipped.  ``predicted``: the
+        states the plan made at ``x_prev`` predicted (:attr:`miss`), if any."""
         u = np.zeros(self.n_input)
         u[self.input_index] = force
         x = np.asarray(x, dtype=float).ravel()
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(x_prev))):
             return
         if self.stall is not None and not self.released:
-            self._watch(np.asarray(x_prev, dtype=float).ravel(), x)
+            self._watch(np.asarray(x_prev, dtype=float).ravel(), x, predicted)
         p_hat, P, p = self.coef, self.cov, self.coef
         for _ in range(self.ITERATIONS):
             pred, J = self._fj(x_prev, u, p)

@@ -136,8 +136,9 @@ class DiscreteInputMPC:
     gate : (callable, int) or (callable, int, callable), optional
         With ``coefficients``: the estimate enters the plan only once ``gate[0](x)`` has held
         for ``gate[1]`` steps in a row (:attr:`CoefficientEstimator.stall`) or ``gate[2](x_prev,
-        x)`` held once (``miss``); until then the step solves the NLP of the model as given
-        (built as well): the same forces as without ``coefficients``.
+        x, predicted)`` held once (``miss``; ``predicted`` the states of the plan made at
+        ``x_prev``, None if that step did not solve); until then the step solves the NLP of the
+        model as given (built as well): the same forces as without ``coefficients``.
     jit : bool, optional
         Compile the NLP's derivatives to C with gcc (:mod:`~lsindy_cas.control.compiled`): the
         same iterates to rounding, each several times faster (step p99 under 20 ms).  Default
@@ -329,8 +330,9 @@ class DiscreteInputMPC:
         x = check_state(x, self.n_state)
         if self.correction is not None and self._uses_correction and self._last is not None:
             self.correction.update(*self._last, x)
-        if self.estimator is not None and self._last is not None:
-            self.estimator.update(*self._last, x)
+        if self.estimator is not None and self._last is not None:  # with the plan made there
+            plan = None if self._idle or self.plan_ is None else self.plan_["states"]
+            self.estimator.update(*self._last, x, plan)
         index = self._own_level(x)
         if index is not None and not self.solve_balanced:
             return self._balanced_step(x, index, t_start, c_start)
