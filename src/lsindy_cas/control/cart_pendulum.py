@@ -225,6 +225,8 @@ class SwingUpMPC(DiscreteInputMPC):
     #: default ``handover`` (m) where the pole turns round only beyond the balancer's angle
     #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md, stop 31)
     HANDOVER_OFFSET = 0.6
+    #: the pulse balancer's ``brake_fraction`` (its own default 0.5; stop 38, control history)
+    PULSE_BRAKE = 0.45
     #: ``adapt_model="stall"``: the estimate is taken up once the pole stayed this far (rad) from
     #: the upright (swung < 1.14 rad from hanging) for this long (s), a stalled swing-up ...
     STALL = (2.0, 3.0)
@@ -349,11 +351,12 @@ class SwingUpMPC(DiscreteInputMPC):
         if balance is True and 0.0 not in self.levels:
             kind = None  # nothing to wait with: the relaxed plan decides everywhere
         self._escalation = None  # (pulse, sequence balancer) while "auto" may switch
+        own = {PulseBalancer: {"brake_fraction": self.PULSE_BRAKE}}  # unless balance= sets it
         build = (lambda k: k(self.step_function, self.ocp.ode, self.levels, cart_index=ic,
                              pole_index=ip, upright=self.upright, track_limit=self.track_limit,
                              dt=self.dt, track_margin=track_margin, correction=self.correction,
-                             **{key: v for key, v in balance_options.items()
-                                if k is SequenceBalancer or key not in _SEQUENCE_ONLY}))
+                             **{**own.get(k, {}), **{key: v for key, v in balance_options.items()
+                                if k is SequenceBalancer or key not in _SEQUENCE_ONLY}}))
         if kind == "auto":
             kind = (SequenceBalancer if self.kick() >= self.SEQUENCE_KICK
                     else PulseBalancer)
