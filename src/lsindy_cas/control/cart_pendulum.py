@@ -28,10 +28,10 @@ import numpy as np
 from .._validate import check_choice, check_real, relative_energy
 from .mpc import DiscreteInputMPC, MPCStats
 from .balancer import PulseBalancer
-from .coefficients import resolve_adapt_model, swing_up_gate
+from .coefficients import resolve_adapt_model
 from .sequence_balancer import SequenceBalancer
 from .track_guard import TrackGuard, check_guard_option
-from .upright import find_upright, handover_side, step_kick, upright_kick
+from .upright import find_upright, handover_side, step_kick, swing_up_gate, upright_kick
 
 __all__ = ["DiscreteInputMPC", "MPCStats", "SwingUpMPC", "find_upright"]
 
@@ -231,7 +231,7 @@ class SwingUpMPC(DiscreteInputMPC):
     #: the upright (swung < 1.14 rad from hanging) for this long (s), a stalled swing-up ...
     STALL = (2.0, 3.0)
     #: ... or at once when the pole turns round between these angles (rad) from the upright on a
-    #: swing the plan had reaching the top (a missed approach, :func:`.coefficients.swing_up_gate`)
+    #: swing the plan had reaching the top (a missed approach, :func:`.upright.swing_up_gate`)
     MISSED = (0.4, 1.3)
 
     def __init__(self, model, force_set=(-10.0, 0.0, 10.0), *, dt=0.05, horizon=40,

@@ -36,7 +36,7 @@ from .._validate import check_choice, check_int, check_real
 from ..mechanics.parametric import ParametricDynamics
 from .fastcall import NumericFunction
 
-__all__ = ["CoefficientEstimator", "parametric_form", "resolve_adapt_model", "swing_up_gate"]
+__all__ = ["CoefficientEstimator", "parametric_form", "resolve_adapt_model"]
 
 
 def _terms(expr):
@@ -114,36 +114,6 @@ def resolve_adapt_model(value, model, coords):
         return False, None
 
 
-def swing_up_gate(pole_index, upright, dt, stall, missed):
-    """``DiscreteInputMPC``'s ``gate`` for a cart-pendulum's swing-up: ``(far, steps, miss)``.
-
-    ``stall = (angle, seconds)``: the pole stayed ``angle`` rad or more from the upright for
-    ``seconds``.  ``missed = (low, high)``: a missed approach -- the plan made at the previous
-    state had the pole rise on to within ``low`` rad of the upright without turning round, and
-    the plant's pole turned round (its rate changed sign) between ``low`` and ``high`` rad from
-    it: the model said this swing reaches the top and it fell short (None: only the stall).
-    """
-    ip, up = int(pole_index), float(upright)
-    lean = (lambda s: abs((s[ip] - up + np.pi) % (2 * np.pi) - np.pi))
-    far = (lambda s: lean(s) >= stall[0])
-    if missed is None:
-        return far, round(stall[1] / dt), None
-    low, high = missed
-
-    def miss(s0, s, predicted):
-        rate = s0[2 + ip]
-        if predicted is None or not (rate * s[2 + ip] < 0 and low < lean(s) < high):
-            return False
-        for p in predicted:  # the plan's own swing: to the top, or turning round first
-            if p[2 + ip] * rate <= 0:
-                return False
-            if lean(p) < low:
-                return True
-        return False
-
-    return far, round(stall[1] / dt), miss
-
-
 class CoefficientEstimator:
     """Extended Kalman filter on the model's constant coefficients (module docstring).
 
@@ -207,7 +177,8 @@ class CoefficientEstimator:
     stall = None
     #: ``miss(x_prev, x, predicted) -> bool``: with :attr:`stall`, the plan takes up the estimate
     #: also at the first transition this calls a missed approach (``predicted``: the states the
-    #: plan made at ``x_prev`` predicted, or None; :func:`swing_up_gate`); None: only the stall
+    #: plan made at ``x_prev`` predicted, or None; :func:`.upright.swing_up_gate`); None: only
+    #: the stall
     miss = None
 
     def reset(self):

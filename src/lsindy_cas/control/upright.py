@@ -31,7 +31,7 @@ from .mpc import wrap_angle
 
 __all__ = ["cart_urgency", "com_speed_step", "escape_lean", "find_upright", "handover_side",
            "peak_between", "reversal_in_band", "reversal_margin", "slow_cart", "step_kick",
-           "turn_excess", "upright_kick"]
+           "swing_up_gate", "turn_excess", "upright_kick"]
 
 
 def find_upright(ode, cart_index, pole_index, n_grid=720):
@@ -269,3 +269,33 @@ def reversal_in_band(balancer, angle=0.1, rate=0.5, periods=20, substeps=5):
     instants of every period, the two pushes at most ``periods`` periods apart:
     :func:`reversal_margin` > 0."""
     return reversal_margin(balancer, angle, rate, periods, substeps) > 0.0
+
+
+def swing_up_gate(pole_index, upright, dt, stall, missed):
+    """``DiscreteInputMPC``'s ``gate`` for a cart-pendulum's swing-up: ``(far, steps, miss)``.
+
+    ``stall = (angle, seconds)``: the pole stayed ``angle`` rad or more from the upright for
+    ``seconds``.  ``missed = (low, high)``: a missed approach -- the plan made at the previous
+    state had the pole rise on to within ``low`` rad of the upright without turning round, and
+    the plant's pole turned round (its rate changed sign) between ``low`` and ``high`` rad from
+    it: the model said this swing reaches the top and it fell short (None: only the stall).
+    """
+    ip, up = int(pole_index), float(upright)
+    lean = (lambda s: abs(wrap_angle(s[ip] - up)))
+    far = (lambda s: lean(s) >= stall[0])
+    if missed is None:
+        return far, round(stall[1] / dt), None
+    low, high = missed
+
+    def miss(s0, s, predicted):
+        rate = s0[2 + ip]
+        if predicted is None or not (rate * s[2 + ip] < 0 and low < lean(s) < high):
+            return False
+        for p in predicted:  # the plan's own swing: to the top, or turning round first
+            if p[2 + ip] * rate <= 0:
+                return False
+            if lean(p) < low:
+                return True
+        return False
+
+    return far, round(stall[1] / dt), miss
