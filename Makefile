@@ -11,7 +11,7 @@ BENCH  ?= bench-results
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,bench,mujoco,dask]'
+	$(PY) -m pip install --quiet -e '.[test,bench,mujoco,gym,dask]'
 	touch $(STAMP)
 
 demo: $(STAMP)
