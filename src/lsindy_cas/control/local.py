@@ -65,7 +65,7 @@ class LocalPolicy:
         self.system, self.x_star, self.u_star = system, np.asarray(x_star, float), u_star
         x, u = ca.SX.sym("x", system.n), ca.SX.sym("u", system.m)
         nxt = system.step(x, u)
-        jac = ca.Function("jac", [x, u], [ca.jacobian(nxt, x), ca.jacobian(nxt, u)])
+        jac = ca.Function("linearisation", [x, u], [ca.jacobian(nxt, x), ca.jacobian(nxt, u)])
         A, B = (np.asarray(M) for M in jac(self.x_star, u_star))
         self.A, self.B = A, B
         self.Q, self.R = np.diag(Q), np.diag(R)
