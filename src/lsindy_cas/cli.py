@@ -15,6 +15,7 @@ MAIN_EXAMPLES = """examples:
       --terms 4 --prior "theta_dot**2,cos(theta)" --json model.json
   lsindy simulate model.json --x0 "0,pi/4,0,0" --t-end 5 --out sim.csv
   lsindy swingup --model model.json --episodes 5  # MPC swing-up of the cart-pendulum
+  lsindy control model.json --task task.toml      # any model, any task (docs/control.md)
 
 Run "lsindy COMMAND --help" for the options of a command."""
 
@@ -31,12 +32,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"lsindy_cas {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
-    from .commands import export, identify, library, reproduce, simulate
+    from .commands import control, export, identify, library, reproduce, simulate
     identify.add_to(sub)
     library.add_to(sub)
     reproduce.add_to(sub)
     simulate.add_to(sub)
     export.add_to(sub)
+    control.add_to(sub)
     from .paper.swingup_cli import add_swingup_arguments, run_from_args
     sw = command(sub, "swingup", "identify the cart-pendulum and swing it up by MPC",
                    "Identify the paper's cart-pendulum from simulated data "

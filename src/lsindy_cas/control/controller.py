@@ -128,6 +128,11 @@ class Controller:
         self.system = sys_ = ControlledSystem(model, self.bound, rng)
         self.candidates = np.array(list(itertools.product(
             *[i.candidates() for i in self.bound.inputs])), float)
+        self.policy = None
+        if plugin is not None:                 # the plug-in decides: nothing generic to build
+            self.policy = plugin.build(model, task, self)
+            self.reset()
+            return
         self._energy_map = sys_.energy.map(max(1, self.settings.width * len(self.candidates)))
         self.energy_scale = self._energy_scale(rng)
         nq = sys_.n // 2
@@ -141,7 +146,6 @@ class Controller:
         self.search = BeamSearch(sys_.step, self.candidates, depth, self.settings.width,
                                  self._cost, self._capture, self.bound.lower, self.bound.upper,
                                  cells=self.settings.cells)
-        self.policy = plugin.build(model, task, self) if plugin is not None else None
         self.reset()
 
     # ------------------------------------------------------------------ build
@@ -219,7 +223,6 @@ class Controller:
         # the least energy with which the condition can hold: the search pumps at least this
         self.target_energy = float(np.min(self._energies(X[ok])))
         self._margin_scale = float(max(np.ptp(margin), 1e-12))
-        self._g = g
 
     # ------------------------------------------------------------------ heuristic
     def _cost(self, X):
@@ -241,7 +244,7 @@ class Controller:
 
     def _margins(self, X):
         X = np.atleast_2d(X)
-        return np.asarray(self._g.map(len(X))(X.T)).ravel()
+        return np.asarray(self.bound.reach[1].map(len(X))(X.T)).ravel()
 
     def _capture(self, X):
         if self.local is not None:
@@ -251,10 +254,11 @@ class Controller:
     # ------------------------------------------------------------------ use
     def reset(self):
         """Forget the previous episode's plan and mode (call before each episode)."""
-        self.search.reset()
         self._local_mode = False
-        if self.policy is not None and hasattr(self.policy, "reset"):
+        if self.policy is not None:
             self.policy.reset()
+        else:
+            self.search.reset()
 
     def __call__(self, x) -> np.ndarray:
         """The inputs for state ``x`` ([q..., q_dot...] in the model's coordinate order),
