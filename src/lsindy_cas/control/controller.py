@@ -210,6 +210,11 @@ class Controller:
         hold_steps = int(np.ceil(self.task.goal.hold / self.task.dt))
         self.region = self.local.region(np.where(banded, band, np.inf), hold_steps, rng,
                                         limits=(b.lower, b.upper))
+        if self.region <= 0:
+            raise ValueError("the inputs cannot hold the goal's band in the model: from states "
+                             "next to the target, the local policy on these levels/bounds "
+                             "leaves the band (a wider band, finer levels or a shorter dt "
+                             "may help)")
         self.target_energy = float(self._energies(x_star)[0])
 
     def _build_reach(self, rng):

@@ -17,6 +17,10 @@ import numpy as np
 
 __all__ = ["BeamSearch"]
 
+# samples simulated per call when a kept plan is checked (one CasADi call instead of one per
+# sample; plans are tens to hundreds of samples long)
+CHUNK = 32
+
 
 class BeamSearch:
     """Beam search over discrete input sequences.
@@ -48,7 +52,7 @@ class BeamSearch:
         self.lower, self.upper = lower, upper
         self.size = self.width * self.k
         self.step = step.map(self.size)
-        self.step1 = step
+        self.roll = step.mapaccum("roll", CHUNK)
         self.plan, self.captured = None, False
         self.cells = int(cells)
 
@@ -72,13 +76,22 @@ class BeamSearch:
 
     def _still_captures(self, x, plan):
         """Whether ``plan`` (input indices), simulated from ``x``, stays inside the limits and
-        enters the capture set: then it is kept without a new search."""
-        for i in plan:
-            x = np.asarray(self.step1(x, self.candidates[i])).ravel()
-            if not (np.all(np.isfinite(x)) and np.all((x >= self.lower) & (x <= self.upper))):
-                return False
-            if self.capture(x[None, :])[0]:
+        enters the capture set: then it is kept without a new search.  Simulated ``CHUNK``
+        samples per call of the model's accumulated map."""
+        for s in range(0, len(plan), CHUNK):
+            part = plan[s:s + CHUNK]
+            U = np.zeros((CHUNK, self.candidates.shape[1]))
+            U[:len(part)] = self.candidates[part]
+            X = np.asarray(self.roll(x, U.T)).T[:len(part)]
+            bad = ~(np.all(np.isfinite(X), axis=1)
+                    & np.all((X >= self.lower) & (X <= self.upper), axis=1))
+            hit = self.capture(np.nan_to_num(X))
+            first_bad = np.argmax(bad) if np.any(bad) else len(part)
+            if np.any(hit[:first_bad]):
                 return True
+            if first_bad < len(part):
+                return False
+            x = X[-1]
         return False
 
     def __call__(self, x):
