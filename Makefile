@@ -8,10 +8,10 @@ BENCH  ?= bench-results
 
 .PHONY: demo test test-all bench bench-sweep clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,bench,mujoco,gym,dask]'
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[test,bench,mujoco,gym,dask]'
 	touch $(STAMP)
 
 demo: $(STAMP)
