@@ -24,6 +24,7 @@ import itertools
 import numpy as np
 
 from .._validate import check_state
+from .compiled import resolve_jit
 from .local import LocalPolicy, equilibrium_input
 from .search import BeamSearch
 from .system import ControlledSystem
@@ -68,6 +69,9 @@ class ControllerSettings:
         level (hysteresis: it is not handed back at the region's edge on every sample).
     seed : int
         Seed of the random sample states the build uses (region estimate, checks).
+    jit : bool or None
+        Compile the search's model map to C (None: where gcc is, or as ``$LSINDY_JIT`` says;
+        :func:`~.compiled.resolve_jit`).
     """
 
     horizon: float = 20.0
@@ -79,6 +83,7 @@ class ControllerSettings:
     distance_weight: float = 0.1
     handover: float = 4.0
     seed: int = 0
+    jit: bool | None = None
 
     def __post_init__(self):
         from .._validate import check_int, check_real
@@ -145,7 +150,7 @@ class Controller:
         depth = max(1, int(np.ceil(self.settings.horizon / task.dt - 1e-9)))
         self.search = BeamSearch(sys_.step, self.candidates, depth, self.settings.width,
                                  self._cost, self._capture, self.bound.lower, self.bound.upper,
-                                 cells=self.settings.cells)
+                                 cells=self.settings.cells, jit=resolve_jit(self.settings.jit))
         self.reset()
 
     # ------------------------------------------------------------------ build

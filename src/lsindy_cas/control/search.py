@@ -22,6 +22,25 @@ __all__ = ["BeamSearch"]
 CHUNK = 32
 
 
+def _mapped(step, size):
+    """``step`` over ``size`` columns as an MX function (what :func:`compiled_function` takes)."""
+    import casadi as ca
+    X = ca.MX.sym("X", step.size1_in(0), size)
+    U = ca.MX.sym("U", step.size1_in(1), size)
+    return ca.Function("step_map", [X, U], [step.map(size)(X, U)], ["X", "U"], ["X_next"])
+
+
+def _maybe_compiled(f, jit):
+    if not jit:
+        return f
+    import casadi as ca
+    from .compiled import compiled_function
+    if not f.is_a("MXFunction"):
+        args = [ca.MX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
+        f = ca.Function(f.name(), args, f.call(args), f.name_in(), f.name_out())
+    return compiled_function(f)
+
+
 class BeamSearch:
     """Beam search over discrete input sequences.
 
@@ -42,17 +61,21 @@ class BeamSearch:
     cells : int
         Diversity: at most one kept sequence per cell of a grid splitting each state's spread
         among the children into ``cells``.
+    jit : bool
+        Compile the mapped model map to C (:mod:`~.compiled`; on the Acrobot 0.73 instead of
+        3.2 ms per call of 192 children, 0.6 s to compile once).
     """
 
-    def __init__(self, step, candidates, depth, width, cost, capture, lower, upper, cells=20):
+    def __init__(self, step, candidates, depth, width, cost, capture, lower, upper, cells=20,
+                 jit=False):
         self.candidates = np.asarray(candidates, float)
         self.k = len(self.candidates)
         self.depth, self.width = int(depth), int(width)
         self.cost, self.capture = cost, capture
         self.lower, self.upper = lower, upper
         self.size = self.width * self.k
-        self.step = step.map(self.size)
-        self.roll = step.mapaccum("roll", CHUNK)
+        self.step = _maybe_compiled(_mapped(step, self.size), jit)
+        self.roll = _maybe_compiled(step.mapaccum("roll", CHUNK), jit)
         self.plan, self.captured = None, False
         self.cells = int(cells)
 
