@@ -24,8 +24,28 @@ def split(text: str | None) -> list:
 
 
 def library(args):
+    """The candidate library of ``--candidates`` (explicit terms) or ``--features/--degree``."""
     from ..symbolic.library import Library
-    return Library.polynomial(split(args.coords), split(args.features), args.degree)
+    if args.candidates is not None:
+        if args.features is not None or args.degree is not None:
+            raise ValueError("give either --candidates (an explicit term list) or "
+                             "--features/--degree (a polynomial library), not both")
+        terms = split(args.candidates)
+        if not terms:
+            raise ValueError("--candidates is empty; give comma-separated terms "
+                             '("theta_dot**2,cos(theta)")')
+        return Library(split(args.coords), [_candidate(t, i) for i, t in enumerate(terms)])
+    if args.features is None:
+        raise ValueError("give --features (with --degree) or --candidates")
+    return Library.polynomial(split(args.coords), split(args.features),
+                              2 if args.degree is None else args.degree)
+
+
+def _candidate(term, i):
+    """A --candidates entry as text, with its position for error messages."""
+    if not term.strip():
+        raise ValueError(f"--candidates: term #{i + 1} is empty")
+    return term
 
 
 def command(sub, name: str, help: str, description: str, epilog: str):
@@ -36,9 +56,15 @@ def command(sub, name: str, help: str, description: str, epilog: str):
 
 def library_arguments(parser):
     parser.add_argument("--coords", required=True, help="coordinate names, comma-separated (x,theta)")
-    parser.add_argument("--features", required=True,
-                        help='feature expressions, comma-separated ("cos(theta),theta_dot,x_dot")')
-    parser.add_argument("--degree", type=int, default=2, help="highest product degree (default 2)")
+    parser.add_argument("--features", default=None,
+                        help='feature expressions, comma-separated ("cos(theta),theta_dot,x_dot"); '
+                        "the library is their products up to --degree")
+    parser.add_argument("--degree", type=int, default=None,
+                        help="highest product degree (default 2)")
+    parser.add_argument("--candidates", default=None, metavar="TERMS",
+                        help="an explicit candidate list instead of --features/--degree: "
+                        'comma-separated sympy terms ("theta1_dot**2,theta1_dot*theta2_dot*'
+                        'cos(theta1 - theta2),cos(theta1)")')
 
 
 def numbers(text: str, what: str) -> list:

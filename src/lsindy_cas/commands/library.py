@@ -3,8 +3,10 @@ from __future__ import annotations
 
 from ._common import command, library, library_arguments
 
-LIBRARY_EXAMPLE = """example:
-  lsindy library --coords x,theta --features "cos(theta),sin(theta),theta_dot,x,x_dot" --degree 3"""
+LIBRARY_EXAMPLE = """examples:
+  lsindy library --coords x,theta --features "cos(theta),sin(theta),theta_dot,x,x_dot" --degree 3
+  lsindy library --coords theta1,theta2 --candidates "theta1_dot**2,cos(theta1),cos(theta1 - theta2)"
+"""
 
 
 def run(args) -> int:
@@ -12,7 +14,9 @@ def run(args) -> int:
     width = len(str(len(lib) - 1))
     for j, name in enumerate(lib.names):
         print(f"{j:>{width}}  {name}")
-    print(f"{len(lib)} terms ({len(lib.coords.names)} coordinates, degree {args.degree})")
+    how = ("explicit candidates" if args.candidates is not None
+           else f"degree {2 if args.degree is None else args.degree}")
+    print(f"{len(lib)} terms ({len(lib.coords.names)} coordinates, {how})")
     return 0
 
 
@@ -20,7 +24,8 @@ def add_to(sub) -> None:
     """Add the subcommand to the ``lsindy`` parser's subparsers."""
     libp = command(sub, "library", "list the candidate terms of a library and their count",
                    "Build the polynomial library that lsindy identify would "
-                          "build from the same --coords, --features and --degree, and list its terms "
+                          "build from the same --coords, --features and --degree (or "
+                          "--candidates), and list its terms "
                           "(index and sympy name) and their count.",
                    LIBRARY_EXAMPLE)
     library_arguments(libp)
