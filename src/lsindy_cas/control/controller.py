@@ -210,8 +210,10 @@ class Controller:
                 q[b.names.index(name)] = w
             else:
                 r[list(self.task.inputs).index(name)] = w
+        limited = np.isfinite(b.lower) | np.isfinite(b.upper)
         self.local = LocalPolicy(sys_, x_star, u_star, b.inputs, q, r,
-                                 depth=self.settings.local_depth)
+                                 depth=self.settings.local_depth,
+                                 ignore=sys_.cyclic & ~banded & ~limited)
         hold_steps = int(np.ceil(self.task.goal.hold / self.task.dt))
         self.region = self.local.region(np.where(banded, band, np.inf), hold_steps, rng,
                                         limits=(b.lower, b.upper))

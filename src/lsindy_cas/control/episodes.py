@@ -25,7 +25,7 @@ class GoalClock:
     def __init__(self, controller):
         self.ctrl = controller
         task = controller.task
-        self.need = int(np.ceil(task.goal.hold / task.dt - 1e-9)) if task.goal.target else 0
+        self.need = int(np.ceil(task.goal.hold / task.dt - 1e-9)) if task.goal.target is not None else 0
         self.run, self.done_at = 0, None
 
     def update(self, x, k):

@@ -58,11 +58,15 @@ class LocalPolicy:
     depth : int
         Length of the scored sequences of discrete inputs (capped so that at most
         ``MAX_SEQUENCES`` are scored).
+    ignore : ndarray of bool (n,), optional
+        States whose error is taken as 0: cyclic positions the goal neither bands nor limits
+        (the dynamics are the same wherever they are, and the user does not care).
     """
 
-    def __init__(self, system, x_star, u_star, inputs, Q, R, depth=6):
+    def __init__(self, system, x_star, u_star, inputs, Q, R, depth=6, ignore=None):
         from scipy.linalg import solve_discrete_are
         self.system, self.x_star, self.u_star = system, np.asarray(x_star, float), u_star
+        self.ignore = np.zeros(system.n, bool) if ignore is None else np.asarray(ignore, bool)
         x, u = ca.SX.sym("x", system.n), ca.SX.sym("u", system.m)
         nxt = system.step(x, u)
         jac = ca.Function("linearisation", [x, u], [ca.jacobian(nxt, x), ca.jacobian(nxt, u)])
@@ -110,8 +114,10 @@ class LocalPolicy:
         self.depth = depth
 
     def errors(self, X):
-        """``z = x − x*`` with angles wrapped, for rows of ``X``."""
-        return self.system.wrap(np.atleast_2d(X) - self.x_star)
+        """``z = x − x*`` with angles wrapped (ignored states 0), for rows of ``X``."""
+        Z = self.system.wrap(np.atleast_2d(X) - self.x_star)
+        Z[:, self.ignore] = 0.0
+        return Z
 
     def value(self, X):
         """Cost-to-go ``zᵀPz`` of rows of ``X`` (n_rows,)."""

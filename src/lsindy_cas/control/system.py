@@ -42,7 +42,9 @@ class ControlledSystem:
     energy : casadi.Function
         ``x -> H(x)``.
     angles : ndarray of bool (n,)
-        States that are angles (compared modulo 2π).
+        States that are angles (compared modulo 2π): H depends on them, 2π-periodically.
+    cyclic : ndarray of bool (n,)
+        Positions H does not depend on (the dynamics are the same wherever they are).
     """
 
     def __init__(self, model, bound, rng):
@@ -79,18 +81,29 @@ class ControlledSystem:
         return X
 
     def _angles(self, rng, n_coords):
+        """Angles: coordinates H depends on and is 2π-periodic in.  Cyclic coordinates: those H
+        does not depend on at all (a cart's position, a Furuta arm's angle): shifting them
+        changes nothing in the dynamics."""
         X = self._samples(rng) * np.pi
-        E = np.asarray(self.energy.map(len(X))(X.T)).ravel()
+        E = self._energy_rows(X)
         scale = 1.0 + np.max(np.abs(E))
-        out = np.zeros(self.n, bool)
+        angles, cyclic = np.zeros(self.n, bool), np.zeros(self.n, bool)
         for i in range(n_coords):
-            Y = X.copy()
-            Y[:, i] += 2 * np.pi
-            Ei = np.asarray(self.energy.map(len(Y))(Y.T)).ravel()
-            # periodic to rounding: 1e-9 of the energy scale (floats carry 1e-16; cos(q + 2π)
+            shifted = []
+            for shift in (2 * np.pi, 1.0):
+                Y = X.copy()
+                Y[:, i] += shift
+                shifted.append(np.max(np.abs(self._energy_rows(Y) - E)))
+            # equal to rounding: 1e-9 of the energy scale (floats carry 1e-16; cos(q + 2π)
             # differs from cos(q) by ~1e-15)
-            out[i] = bool(np.max(np.abs(Ei - E)) <= 1e-9 * scale)
-        return out
+            same = [d <= 1e-9 * scale for d in shifted]
+            cyclic[i] = same[1]
+            angles[i] = same[0] and not same[1]
+        self.cyclic = cyclic
+        return angles
+
+    def _energy_rows(self, X):
+        return np.asarray(self.energy.map(len(X))(X.T)).ravel()
 
     def _check_kinetic(self, bound, rng):
         X = self._samples(rng) * np.pi

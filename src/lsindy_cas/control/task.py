@@ -232,7 +232,8 @@ class Task:
             raise TypeError("goal must be a Goal or a table with target/band/hold or reach")
         limits = {}
         for name, lim in (self.limits or {}).items():
-            lo, hi = _numbers(f"limits.{name}", lim) if np.iterable(lim) else (None, None)
+            pair = _numbers(f"limits.{name}", lim) if np.iterable(lim) else []
+            lo, hi = pair if len(pair) == 2 else (None, None)
             if lo is None or not lo < hi:
                 raise ValueError(f"limits.{name} must be [low, high] with low < high, got {lim!r}")
             limits[str(name)] = (lo, hi)
