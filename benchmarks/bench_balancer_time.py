@@ -1,8 +1,8 @@
 """The sequence balancer's plan time with and without its costs of leaving the success band.
 
 Three controllers on the same exact model of a family plant (``bench_family.PLANTS``), the
-sequence balancer with ``between_weight`` 0 (samples only, stop 33), with the pole's turn
-between samples priced (stop 34: ``success_weight=0``) and as by default (stop 35: also the
+sequence balancer with ``between_weight`` 0 (samples only), with the pole's turn
+between samples priced (``success_weight=0``) and as by default (also the
 success band's own term where the pole turns round inside it), run the same nominal episodes, interleaved start by start and repeated ``--repeats`` times so that
 the machine's load affects both alike.  Reports, per configuration and repeat, the balancer's
 plan time (median, p99, max over every plan) and the step time (everything ``ctrl(x)`` does),

@@ -40,7 +40,7 @@ from lsindy_cas.symbolic.library import Library  # noqa: E402
 
 SYSTEMS = ("spherical", "double", "cart")
 Z = (1.0, 2.0, 3.0)
-TARGET = (0.60, 0.75)          # coverage of ±1σ the issue asks for (68 % ideal)
+TARGET = (0.60, 0.75)          # coverage of ±1σ aimed for (68 % ideal)
 
 
 def run_one(job):

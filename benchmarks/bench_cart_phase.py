@@ -124,7 +124,7 @@ def episode(ctrl, plant, x0, coef, t_end=10.0):
 
 
 def window_success(t, X, ends):
-    """Success (the issue's criterion: in the band over the last 3 s, on the track throughout)
+    """Success (the success criterion: in the band over the last 3 s, on the track throughout)
     of the same run cut at each of ``ends`` (s)."""
     return [bool(evaluate(t[t <= end + 1e-9], X[t <= end + 1e-9], t_end=end)[0]) for end in ends]
 
@@ -215,8 +215,8 @@ def main(argv=None):
                  "-" if r["share_two_levels"] is None else f"{100 * r['share_two_levels']:.0f} %"
                  for r in rows) + "."]
     if len(ends) > 1:
-        # the pole kept in the success band needs >= 24 % of the time on either level of w
-        # (stop 27), in the balancer's own bands >= 42 % (stop 30): within that share of an
+        # the pole kept in the success band needs >= 24 % of the time on either level of w,
+        # in the balancer's own bands >= 42 %: within that share of an
         # integer the phase forces the cart to creep; and where the pole turns round only
         # beyond the success band (turn_lean > 0.1 rad) every reversal of a creep leaves it
         dist = lambda r: min(r["start_phase"], 1 - r["start_phase"])  # noqa: E731
@@ -227,7 +227,7 @@ def main(argv=None):
                   ("within 0.08 of 0.5 (the cart can stand)",
                    [r for r in rows if dist(r) >= 0.42])]
         lines += ["", "The same runs cut at " + ", ".join(f"{e:g}" for e in ends) + " s (success "
-                  "= the issue's criterion over the last 3 s before the cut), and the pole's "
+                  "= the success criterion over the last 3 s before the cut), and the pole's "
                   "exits from the success band from 0.5 s after the hand-over to "
                   f"{args.seconds:g} s:", "",
                   "| start phase | starts | " + " | ".join(f"success at {e:g} s" for e in ends)

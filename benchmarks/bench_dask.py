@@ -1,4 +1,4 @@
-"""Dask: the support searches on a LocalCluster against one process, on this machine (issue 15).
+"""Dask: the support searches on a LocalCluster against one process, on this machine.
 
 Exhaustive scoring: every support of the spherical pendulum's 125-term library without priors —
 C(125, 3) = 317,750 and C(125, 4) = 9,691,375 supports — in process and on a ``--workers``-worker

@@ -1,4 +1,4 @@
-"""Swing-up across the cart-pendulum family (issue 16): identified vs exact model, two balancers.
+"""Swing-up across the cart-pendulum family: identified vs exact model, two balancers.
 
 Plants: cart mass 0.5-2 kg, pole mass 0.05-0.5 kg, pole length 0.3-1.5 m, all with one push's
 kick ``F dt / (m_c L) <= 0.9 rad/s`` (10 N, 50 ms), the paper's plant first and the light-cart,
@@ -6,7 +6,7 @@ short-pole corner (0.8 kg, 0.7 m: 0.89 rad/s) included.  Each plant is identifie
 from its own simulated actuated run (:func:`lsindy_cas.paper.swingup.identify_cart_pendulum`
 with the plant's system); controllers are built from the *identified* model and, as the
 ceiling, from the plant's *exact* equations; near the upright they use the pulse balancer
-(``pulse``, before issue 16) or the branch-and-bound sequence balancer (``sequence``).
+(``pulse``, the older of the two) or the branch-and-bound sequence balancer (``sequence``).
 Scenarios: ``nominal`` (plant = the system identified) and ``mismatch`` (cart mass, pole mass
 and pole length each off by +-10 %, signs drawn per episode).  Success as in ``lsindy swingup``
 (upright within 0.1 rad and 0.5 rad/s over the last 3 s of 10 s, |x| <= 2 m throughout).
@@ -15,7 +15,7 @@ Physically out of reach: an episode whose simulated plant has an empty viability
 level sequence keeps its pole in the success band for ever on its exact upright linearisation,
 :mod:`lsindy_cas.control.viability`) is classed ``unreachable`` when it fails, and success is
 reported over all episodes and over the reachable ones.  (For ever is more than the criterion's
-last 3 s: one such episode, 1.2/0.1/0.5 mismatched in stop 32, succeeded.)
+last 3 s: one such episode, 1.2/0.1/0.5 mismatched, has succeeded.)
 
 Writes ``family.json`` and ``family.png`` to ``--out`` and prints a markdown table and, per
 cell kind, totals with 95 % Wilson intervals (20 starts cannot show 95 %: 19/20 is 0.76-0.99).
@@ -186,7 +186,7 @@ def wilson(k, n, z=1.96):
     return float(max(0.0, centre - half)), float(min(1.0, centre + half))
 
 
-#: the controller's settings were chosen on starts 0-19 of seed 0 (issue 16, stops 20-26);
+#: the controller's settings were chosen on starts 0-19 of seed 0;
 #: the totals report those starts and the later ones (held out) apart
 TUNED_STARTS = 20
 
@@ -310,7 +310,7 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=1, help="plants run in parallel processes")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-guard", action="store_true",
-                    help="controllers without the track guard (before issue 16's guard)")
+                    help="controllers without the track guard")
     ap.add_argument("--weights", help="JSON object of swing-up cost weights to change, e.g. "
                                       "'{\"velocity\": 0.5}' (SwingUpMPC.default_weights)")
     ap.add_argument("--handover", type=float,
@@ -320,14 +320,13 @@ def main(argv=None):
     ap.add_argument("--adapt-model", choices=("stall", "on", "off"),
                     help="SwingUpMPC(adapt_model=): the swing-up plan on an online estimate of "
                          "the model's coefficients once a swing-up has stalled (stall, the "
-                         "default since stop 37), always (on) or never (off: stop 36's default)")
+                         "default), always (on) or never (off)")
     ap.add_argument("--between-weight", type=float,
                     help="the sequence balancers' between_weight (default theirs, 1; 0: the "
-                         "pole's turn between samples not priced, stop 33's balancer)")
+                         "pole's turn between samples not priced)")
     ap.add_argument("--success-weight", type=float,
                     help="the sequence balancers' success_weight (default theirs; 0: leaving "
-                         "the success band priced only as the planning bands' squared excess, "
-                         "stop 34's balancer)")
+                         "the success band priced only as the planning bands' squared excess)")
     args = ap.parse_args(argv)
     sequence_options = {}
     for name in ("between_weight", "success_weight"):

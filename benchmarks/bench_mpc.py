@@ -1,9 +1,10 @@
-"""Benchmark of the discrete-force swing-up MPC (issue 3): solvers and discrete-force strategies.
+"""Benchmark of the discrete-force swing-up MPC: solvers and discrete-force strategies.
 
 For each configuration, the controller built from the *identified* cart-pendulum runs the 20
-random starts of issue 3 (seed 0) on the true plant; the table reports success, time to upright,
-track used, fallbacks, and the per-step solve time over all episodes (wall clock and CPU time of
-the calling thread; the CPU time is not inflated when other processes share the cores).  The
+random starts of the swing-up benchmark (seed 0) on the true plant; the table reports success,
+time to upright, track used, fallbacks, and the per-step solve time over all episodes (wall
+clock and CPU time of the calling thread; the CPU time is not inflated when other processes
+share the cores).  The
 default configuration is also run with +-10 % plant mismatch and with N(0, 0.01^2) measurement
 noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
 ``benchmarks/results/``).
@@ -11,13 +12,13 @@ noise.  Prints a markdown table and writes ``mpc.json`` into ``--out`` (default
     python benchmarks/bench_mpc.py                 # everything (about 8 minutes on 2 cores)
     python benchmarks/bench_mpc.py --episodes 3    # quick look
     python benchmarks/bench_mpc.py --configs sqp+continuous+lookahead+balancer,sqp+nojit,\
-sqp+ipopt-recovery --no-robustness --out /tmp/rt  # the real-time comparison (issue 16)
+sqp+ipopt-recovery --no-robustness --out /tmp/rt  # the real-time comparison
 
-The default compiles the NLP's derivatives with gcc where there is one (since stop 36; about
+The default compiles the NLP's derivatives with gcc where there is one (about
 8 s the first time for a model, cached in ``$LSINDY_CACHE_DIR``, see
 ``lsindy_cas/control/compiled.py``; ``compiled`` in the JSON says whether it did): run once
-before timing, or read ``build_s``.  ``sqp+nojit`` is the default uncompiled (as before stop
-36, and where there is no gcc).  ``slow_steps`` in the JSON counts the steps over 20 ms by what
+before timing, or read ``build_s``.  ``sqp+nojit`` is the default uncompiled (as where
+there is no gcc).  ``slow_steps`` in the JSON counts the steps over 20 ms by what
 they ran (cold start, recovery, warm SQP, balancer): the p99 of 4,000 steps is the 40th
 slowest.  ``force_digests`` fingerprints each episode's forces; the script prints how many
 episodes of each configuration applied exactly the forces of the first one.
@@ -54,7 +55,7 @@ CONFIGS = {
                                            "rounding": "lookahead"}, "default"),
     "sqp+solve-balanced": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                             "solve_balanced": True},
-                           "relaxed NLP solved on the balancer's steps too (before issue 16)"),
+                           "relaxed NLP solved on the balancer's steps too (once the default)"),
     "sqp+inexact1e-3": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                          "inexact_tol": 1e-3},
                         "capped SQP iterates applied if within 1e-3 of feasibility"),
@@ -65,8 +66,8 @@ CONFIGS = {
                               "rounding": "lookahead", "inexact_tol": 1e-3, "max_iter": 8},
                              "as sqp+inexact1e-3, at most 8 SQP iterations per step"),
     "sqp+cap10": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
-                   "max_iter": 10}, "at most 10 warm SQP iterations per step (default before "
-                  "stop 25; 7 since)"),
+                   "max_iter": 10}, "at most 10 warm SQP iterations per step (formerly the "
+                  "default; the default is 7)"),
     "sqp+cap8": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                   "max_iter": 8}, "at most 8 warm SQP iterations per step"),
     "sqp+continue": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
@@ -77,13 +78,13 @@ CONFIGS = {
                            "cold starts and recoveries by IPOPT (the default before fatrop)"),
     "sqp+jit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                  "jit": True}, "default with the NLP functions compiled, explicitly (gcc, "
-                "cached; the default itself where gcc is, since stop 36)"),
+                "cached; the default itself where gcc is)"),
     "sqp+nojit": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
-                   "jit": False}, "default with the NLP uncompiled (the default before stop 36 "
-                  "and where there is no gcc)"),
+                   "jit": False}, "default with the NLP uncompiled (once the default; "
+                  "still the default where there is no gcc)"),
     "sqp+no-estimator": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                           "adapt_model": False}, "default without the coefficient estimate "
-                         "waiting for a stall (adapt_model=False: the default before stop 37)"),
+                         "waiting for a stall (adapt_model=False: once the default)"),
     "sqp+fatrop": ({"solver": "sqp", "relaxation": "continuous", "rounding": "lookahead",
                     "cold": "fatrop", "recovery": "fatrop"},
                    "cold starts and recoveries by fatrop (the default, explicitly)"),
@@ -250,7 +251,7 @@ def main(argv=None):
                           "loadavg_before": load_before, "loadavg_after": os.getloadavg(),
                           "reference_ms": reference},
               "episodes": args.episodes, "seed": args.seed,
-              "criteria": "issue 3: |wrap(theta - pi)| < 0.1 rad and |theta_dot| < 0.5 rad/s "
+              "criteria": "success: |wrap(theta - pi)| < 0.1 rad and |theta_dot| < 0.5 rad/s "
                           "over the last 3 s of 10 s, |x| <= 2 m throughout",
               "results": [dict(r, configuration=n, note=CONFIGS[n][1]) for n, r in rows]}
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)

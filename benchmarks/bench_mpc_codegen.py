@@ -1,6 +1,6 @@
 """Can the MPC step itself be shipped as C?  Generated SQP (sqpmethod + qrqp) against the running one.
 
-Issue 16, item 4: ``lsindy export`` ships the identified ODE and its RK4 step as C; this script
+``lsindy export`` ships the identified ODE and its RK4 step as C; this script
 answers the follow-up question for the optimisation each MPC step solves.  CasADi can generate C
 for ``sqpmethod`` with its own active-set QP solver ``qrqp`` (HPIPM, IPOPT and fatrop are not
 code-generated).  The script

@@ -1,4 +1,4 @@
-"""Swing-up closed on MuJoCo: identified from MuJoCo data only, controlled in MuJoCo (issue 16).
+"""Swing-up closed on MuJoCo: identified from MuJoCo data only, controlled in MuJoCo.
 
 For each cart-pendulum below, MuJoCo (an engine we did not write) is the plant throughout:
 

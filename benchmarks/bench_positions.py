@@ -10,7 +10,7 @@ are estimated by the smoother's derivative (``Trajectory.from_positions``).  Cas
   jitter     as ``noise``, with sample times jittered by ±20 % of the 10 ms period (uniform)
 
 A seed passes when the support is exact and every coefficient is within 5 % of the truth (the
-issue's target: ≥ 9 of 10 seeds per system and case).
+target: ≥ 9 of 10 seeds per system and case).
 
 Usage::
 

@@ -10,7 +10,7 @@ library, admissibility, Legendre, equations of motion — is identical in both c
     python benchmarks/bench_search.py --quick --parts search_only   # one part, the others kept
 
 "Search alone" also times the branch and bound (:mod:`lsindy_cas.identify.bnb`) on the same balance
-and rules: the issue's ≥ 200× target counts whichever path is faster.
+and rules: the ≥ 200× target counts whichever path is faster.
 """
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
-"""Track guard (issue 16): success and track used with and without it, on the paper's plant.
+"""Track guard: success and track used with and without it, on the paper's plant.
 
 For each scenario (``nominal``; ``mismatch``: cart mass, pole mass and pole length each off by
 +-10 %, signs drawn per episode as in ``lsindy swingup``) the controller built from the
-identified model runs the same random starts with ``guard=False`` (before issue 16) and
+identified model runs the same random starts with ``guard=False`` (no guard) and
 ``guard=True``; the table gives successes, max |x| and the steps the guard braked.  Writes
 ``track_guard.json`` to ``--out``.
 

@@ -1,4 +1,4 @@
-"""Which cart-pendulums can be balanced with {-10, 0, 10} N at 20 Hz at all (issue 16).
+"""Which cart-pendulums can be balanced with {-10, 0, 10} N at 20 Hz at all.
 
 For every plant of the family benchmark (``bench_family.PLANTS``) and each of the 8 sign
 patterns of its +-10 % mismatch (cart mass, pole mass, pole length), the viability kernel of the
@@ -8,7 +8,7 @@ in the success band |phi| < 0.1 rad, |theta_dot| < 0.5 rad/s), the share of the 
 whether 8 settled starts (|phi| < 0.03, |theta_dot| < 0.2) are inside, and the build time;
 then the sequence balancer's plan time with and without the kernel, closed loop on the
 linearised 0.8/0.2/0.7 plant from settled starts.
-The issue's own numbers are the check: kick 0.89 rad/s held from 8/8 settled starts, 1.0 from
+The expected numbers are the check: kick 0.89 rad/s held from 8/8 settled starts, 1.0 from
 none.
 
     python benchmarks/bench_viability.py --out DIR           # 12 plants x 9 kernels (~1-2 min)

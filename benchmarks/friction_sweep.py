@@ -1,4 +1,4 @@
-"""Friction (issue 14): identification with Rayleigh dissipation on noisy data, rich protocol.
+"""Friction: identification with Rayleigh dissipation on noisy data, rich protocol.
 
 Systems (true friction in ``CASES``): the cart-pendulum with viscous cart and pivot friction and
 Coulomb cart friction, and the double pendulum with viscous damping at the first joint and
@@ -7,7 +7,7 @@ input held at random levels, 10 runs × 5 s at 100 Hz; ``benchmarks/noise_sweep.
 and velocities with Gaussian noise σ, no accelerations (integral form, smoothing, errors in
 variables).  The candidate dissipation terms are every quadratic form in the velocities plus |q̇ᵢ|.
 A seed succeeds when the energy support and the dissipation support are exact and every energy
-and dissipation coefficient is within 5 % (target of the issue: ≥ 9 of 10 seeds at σ = 1e-2).
+and dissipation coefficient is within 5 % (target: ≥ 9 of 10 seeds at σ = 1e-2).
 
     python benchmarks/friction_sweep.py --out benchmarks/results [--jobs 2]   # 10 seeds, both
     python benchmarks/friction_sweep.py --out /tmp/fr --quick                  # 2 seeds, short runs

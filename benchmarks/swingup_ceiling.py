@@ -1,4 +1,4 @@
-"""Is the swing-up's mismatch shortfall model error, or the coarse force?  (issue 3)
+"""Is the swing-up's mismatch shortfall model error, or the coarse force?
 
 On the nominal plant and on each of the 8 sign patterns of a 10 % error in cart mass, pole
 mass and pole length, the same random starts are run twice:

@@ -1,6 +1,6 @@
 """``balance=True`` on a plant whose push the model underestimates: the pulse balancer hands
 over to the sequence balancer once the online correction's estimate of the push reaches
-``SwingUpMPC.SEQUENCE_KICK`` (issue 16)."""
+``SwingUpMPC.SEQUENCE_KICK``."""
 
 import numpy as np
 import pytest

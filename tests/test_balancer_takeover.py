@@ -1,4 +1,4 @@
-"""When the pulse balancer takes over a fast cart (``SwingUpMPC.PULSE_BRAKE``, stop 38): only if
+"""When the pulse balancer takes over a fast cart (``SwingUpMPC.PULSE_BRAKE``): only if
 leaning by ``brake_fraction`` of its largest lean stops the cart inside the track; 0.45 by default
 (the balancer's own default, 0.5, took over a cart it could not stop under a 10 % mismatch)."""
 

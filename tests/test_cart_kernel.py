@@ -1,4 +1,4 @@
-"""The joint pole/cart viability kernel at the upright (control/cart_kernel.py, issue 16)."""
+"""The joint pole/cart viability kernel at the upright (control/cart_kernel.py)."""
 
 import numpy as np
 import pytest

@@ -213,7 +213,7 @@ def test_adapt_model_defaults_and_bad_values(shared_mpc):
 
 def _mismatched_episode(adapt_model, balance=True):
     """Start 12 of the 60-start family seed on 0.6/0.2/1.0 with its cart 10 % lighter, its pole
-    10 % heavier and longer, controlled on the nominal model (issue 16: lost with the input
+    10 % heavier and longer, controlled on the nominal model (lost with the input
     gain and lean corrections alone, held with the plant's own equations in the plan)."""
     from lsindy_cas.mpc import SwingUpMPC
     nominal = systems.cart_pendulum(mc=0.6, mp=0.2, L=1.0)
@@ -235,10 +235,10 @@ def test_estimated_coefficients_swing_up_a_mismatched_plant():
 
 @pytest.mark.slow
 def test_the_same_episode_is_lost_without_the_estimate():
-    """With stop 34's sequence balancer; since stop 35 its success band term holds this start
-    without the estimate too."""
-    stop34 = {"method": "auto", "success_weight": 0.0}
-    assert not _mismatched_episode(False, stop34)[1].success
+    """With the sequence balancer's success band term off (``success_weight=0``); with that
+    term, as by default, this start is held without the estimate too."""
+    no_success_term = {"method": "auto", "success_weight": 0.0}
+    assert not _mismatched_episode(False, no_success_term)[1].success
 
 
 def test_the_stall_gate_holds_the_prior_until_the_pole_stays_far_from_the_top():
@@ -382,9 +382,9 @@ def test_adapt_model_stall_sets_the_gate(shared_mpc):
 
 def test_until_the_gate_opens_the_stall_option_applies_the_default_forces():
     """Until its gate opens, ``adapt_model="stall"`` solves the NLP of the model as given with
-    the online correction's gain: the same forces as without the option, exactly.  (Stop 36's
-    version solved the coefficients' NLP and dropped the gain; even with the gain, that NLP's
-    rounding differs and changed 1 in 20 mismatched family episodes.)"""
+    the online correction's gain: the same forces as without the option, exactly.  (Solving
+    the coefficients' NLP instead, as an earlier version did without the gain, would not: even
+    with the gain, that NLP's rounding differs and changed 1 in 20 mismatched family episodes.)"""
     from lsindy_cas.mpc import SwingUpMPC
     nominal = systems.cart_pendulum(mc=0.7, mp=0.4, L=0.8)
     plant = Plant(systems.cart_pendulum(mc=0.63, mp=0.44, L=0.88), DT)
@@ -422,7 +422,7 @@ def test_a_stalled_swing_up_is_rescued_by_the_estimate():
 
 def _short_pole_episode(adapt_model):
     """Held-out seed 1, start 18 of 2.0/0.3/0.3 with cart and pole 10 % heavier and the pole
-    10 % shorter, on the nominal model (issue 16, stop 38: lost by the model as given -- each
+    10 % shorter, on the nominal model (lost by the model as given -- each
     planned approach falls short or overshoots, 10 s without the top -- and held with the
     estimate taken up at the first approach that turned round short of the top)."""
     from lsindy_cas.mpc import SwingUpMPC

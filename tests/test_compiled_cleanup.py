@@ -1,4 +1,4 @@
-"""The JIT (control/compiled.py) leaves no temporary files behind (issue 16)."""
+"""The JIT (control/compiled.py) leaves no temporary files behind."""
 
 import gc
 import shutil

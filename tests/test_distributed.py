@@ -1,4 +1,4 @@
-"""The support search on a Dask cluster gives the single-process answer (issue 15, item 5)."""
+"""The support search on a Dask cluster gives the single-process answer."""
 import numpy as np
 import pytest
 

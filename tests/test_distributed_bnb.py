@@ -1,5 +1,5 @@
 """The branch and bound on a Dask cluster gives the single-process answer, and its workers prune
-with the shared incumbent (issue 15, item 5)."""
+with the shared incumbent."""
 import numpy as np
 import pytest
 

@@ -112,8 +112,8 @@ def test_header_only_csv_is_one_clear_error(tmp_path, capsys):
 
 
 def test_all_passive_without_scale_is_relative_and_names_the_cli_flag(tmp_path):
-    """Issue 14: free-swing data without --scale give the energy up to a factor, said so, with
-    the flag that would make it absolute (was refused before).  The cart starts moving: from rest
+    """Free-swing data without --scale give the energy up to a factor, said so, with the flag
+    that would make it absolute (not refused).  The cart starts moving: from rest
     the horizontal momentum is 0 throughout and ẋ·p_x ≡ 0 would be a second "conserved" term."""
     tr = systems.cart_pendulum().simulate(x0=(0.0, np.pi / 4, 0.5, 0.0), t_end=3.0, u=0.0)
     path = tr.save(tmp_path / "free.csv")

@@ -1,4 +1,4 @@
-"""Rayleigh dissipation (issue 14): friction in the energy balance, the equations of motion, passive
+"""Rayleigh dissipation: friction in the energy balance, the equations of motion, passive
 data without a scale record, the model file and the CLI — against known answers."""
 import copy
 import dataclasses
@@ -26,7 +26,7 @@ DOUBLE_R = "0.05*theta1_dot**2 + 0.04*(theta2_dot - theta1_dot)**2"     # damper
 DOUBLE_DISS = ["theta1_dot**2", "theta1_dot*theta2_dot", "theta2_dot**2", "Abs(theta1_dot)",
                "Abs(theta2_dot)"]
 # σ = 0 and exact accelerations (derivative form): the balance holds to round-off, so 1e-3
-# relative is the issue's target with a wide margin (measured ≤ 2e-7 here).
+# relative is the target with a wide margin (measured ≤ 2e-7 here).
 REL = 1e-3
 
 

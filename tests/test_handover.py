@@ -150,16 +150,16 @@ def test_reference_is_set_at_the_first_step_and_cleared_by_reset(light):
 def test_off_centre_hand_over_keeps_a_creeping_cart_off_the_track_edge(light):
     """Start 17 of the family benchmark (phase 0.2): handed over at the centre the cart creeps
     to the track's margin and the reversal there touches the band in the last 3 s; handed over
-    at +0.6 m it creeps the other way through the episode (measured, stop 31, with that stop's
-    balancer: the cost of the pole's turn between samples, stop 34, holds this start from the
-    centre too)."""
+    at +0.6 m it creeps the other way through the episode (measured with the sequence
+    balancer's turn costs off, ``between_weight=0, success_weight=0``: the cost of the pole's
+    turn between samples holds this start from the centre too)."""
     from lsindy_cas.paper.swingup import random_starts, run_episode
     system, ctrl = light
     x0 = random_starts(60, 0)[17]
     assert handover_side(ctrl.balancer, x0) == 1
     assert run_episode(ctrl, Plant(system, 0.05), x0).success
-    stop31 = {"method": "sequence", "between_weight": 0.0, "success_weight": 0.0}
-    offset = SwingUpMPC(system, balance=stop31)
+    no_turn_costs = {"method": "sequence", "between_weight": 0.0, "success_weight": 0.0}
+    offset = SwingUpMPC(system, balance=no_turn_costs)
     assert run_episode(offset, Plant(system, 0.05), x0).success
-    centre = SwingUpMPC(system, handover=0.0, balance=stop31)
+    centre = SwingUpMPC(system, handover=0.0, balance=no_turn_costs)
     assert not run_episode(centre, Plant(system, 0.05), x0).success

@@ -54,7 +54,7 @@ def test_auto_hold_identifies_both_kinds_of_input(runs, expected):
     terms = model.terms()
     assert set(terms) == set(TRUE)
     for name, value in TRUE.items():
-        # issue target 1e-3 relative; the quadrature of the right work integral is ~1e-6
+        # target 1e-3 relative; the quadrature of the right work integral is ~1e-6
         assert terms[name] == pytest.approx(value, rel=1e-3), name
     assert model.to_dict()["hold"] == expected
     assert "input hold of the work integral: " + expected in str(model.diagnostics_)

@@ -1,7 +1,7 @@
-"""Tests of the discrete-force MPC (issue 3): rounding, fallback, bad input, closed loop.
+"""Tests of the discrete-force MPC: rounding, fallback, bad input, closed loop.
 
 The closed-loop checks run the controller built from the *identified* cart-pendulum on the true
-plant (CVODES, zero-order hold) and judge them by issue 3's success criterion.
+plant (CVODES, zero-order hold) and judge them by the swing-up's success criterion.
 """
 
 import argparse
@@ -332,7 +332,7 @@ def test_reset_makes_an_episode_independent_of_the_ones_before(model, plant):
     np.testing.assert_array_equal(a.X, b.X)
 
 
-def test_evaluate_applies_the_issue_criterion():
+def test_evaluate_applies_the_success_criterion():
     t = np.linspace(0, 10, 1001)
     X = np.zeros((t.size, 4))
     X[:, 1] = np.pi
@@ -715,7 +715,7 @@ def test_energy_weight_bad_input():
 @pytest.mark.slow
 def test_energy_weight_lifts_a_heavy_pendulum_from_rest():
     """2.0/0.5/1.5 from near rest at the bottom (start 20 of seed 0): without the energy term the
-    NLP stays at the bottom, where its angle cost is flat (docs/history/control.md, stop 27)."""
+    NLP stays at the bottom, where its angle cost is flat (docs/history/control.md)."""
     plant = systems.cart_pendulum(mc=2.0, mp=0.5, L=1.5)
     x0 = random_starts(60, seed=0)[20]
     stuck = run_episode(SwingUpMPC(plant, dt=0.05, weights={"energy": 0.0}), Plant(plant, 0.05), x0)

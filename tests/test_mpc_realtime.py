@@ -1,4 +1,4 @@
-"""Tests of the MPC's real-time pieces (issue 16, part 3): fatrop cold starts and recoveries,
+"""Tests of the MPC's real-time pieces: fatrop cold starts and recoveries,
 the per-step record of what each step ran, and the compiled (JIT) NLP functions."""
 
 import shutil

@@ -117,8 +117,8 @@ def test_plant_rejects_bad_parameters():
 
 
 def _damped_cart_runs(n_samples=200, n_runs=3, seed=1):
-    """The false alarm of issue 14: cart 0.8 kg, pole 0.2 kg at 0.7 m, joint damping 0.5 (cart) and
-    0.02 N·s (pivot), held multisine input changing every sample."""
+    """A damped cart that must raise no false alarm: cart 0.8 kg, pole 0.2 kg at 0.7 m, joint
+    damping 0.5 (cart) and 0.02 N·s (pivot), held multisine input changing every sample."""
     from lsindy_cas.plants import mujoco as pm
     rng = np.random.default_rng(seed)
     plant = pm.cart_pendulum(0.8, 0.2, 0.7, cart_damping=0.5, pivot_damping=0.02)
@@ -176,7 +176,7 @@ def test_damped_double_pendulum_energy_and_damping_match_mujoco():
 
 @pytest.mark.slow
 def test_cli_damped_cart_from_csv_is_ok(tmp_path):
-    """The issue's false alarm, end to end: CSV files, `lsindy identify --dissipation`, exit 0."""
+    """The same damped cart, end to end: CSV files, `lsindy identify --dissipation`, exit 0."""
     import json
     import subprocess
     import sys

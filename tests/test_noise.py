@@ -221,7 +221,7 @@ def test_other_simulator_sign_convention_and_rate(rng):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["spherical", "double", "cart"])
 def test_rich_protocol_at_5e2_one_seed(name, load_script):
-    """Issue 4's rich-protocol target cell, one seed of the benchmark (10 runs × 5 s, σ = 5e-2):
+    """The rich protocol's target cell, one seed of the benchmark (10 runs × 5 s, σ = 5e-2):
     exact support and every coefficient within 5 %, k chosen automatically."""
     (row,) = load_script("benchmarks/noise_sweep.py").run_one((name, "rich", 5e-2, 0, ("ours",)))
     assert row["exact_support"] and row["k"] == row["k_true"]

@@ -1,4 +1,4 @@
-"""The relaxed plan uses the online correction's input gain (``adapt_plan``, issue 16)."""
+"""The relaxed plan uses the online correction's input gain (``adapt_plan``)."""
 
 import numpy as np
 import pytest
@@ -51,7 +51,7 @@ def test_a_heavier_plant_is_caught_when_the_plan_knows_its_push():
     """Family plant 1.5/0.3/1.0 (identified), plant cart and pole length +10 %, pole mass
     -10 % (the benchmark's start 2), the top-rate band held at 1.5 rad/s, the energy term off
     and the warm SQP capped at 10 iterations (the settings this was measured with; with the
-    energy term on, the default since stop 28, this start comes up either way): planning with
+    energy term on, as by default, this start comes up either way): planning with
     the model's push, the swing-up overshot the top again and again (the pole still spinning
     at 10 s); planning with the online estimate of the push, the pole is up at 2.6 s."""
     from lsindy_cas.paper.swingup import run_episode

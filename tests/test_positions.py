@@ -170,6 +170,6 @@ def test_cli_positions_only_says_so(tmp_path, cart, capsys):
     truth = {"x_dot**2": 0.55, "theta_dot**2": 0.05, "theta_dot*x_dot*cos(theta)": 0.1,
              "cos(theta)": -0.981}
     assert set(d["hamiltonian_terms"]) == set(truth)
-    for name, value in truth.items():      # σ = 1e-4 on positions: within 2 % (issue: 5 % at 1e-3)
+    for name, value in truth.items():      # σ = 1e-4 on positions: within 2 % (target 5 % at 1e-3)
         assert d["hamiltonian_terms"][name] == pytest.approx(value, rel=2e-2), name
     assert LagrangianSINDy.load(out).velocities_ == "estimated"

@@ -1,4 +1,4 @@
-"""Positions only on clean data: no false alarm (issue 13, "no false alarms").
+"""Positions only on clean data: no false alarm.
 
 The README's sample runs (cart-pendulum, a multisine and a square wave held over each 10 ms
 sample) without their ``<q>_dot`` columns: the velocities come from the smoother's derivative,
@@ -20,7 +20,7 @@ PRIOR = ["theta_dot**2", "cos(theta)"]
 TRUTH = {"cos(theta)": -0.981, "theta_dot**2": 0.05, "x_dot**2": 0.55,
          "theta_dot*x_dot*cos(theta)": 0.1}
 # The estimated velocities are off by up to 5e-5 (run 1) and 1e-3 (near run 2's switches) on
-# ranges of ~1; measured coefficient errors 1e-5 relative.  1e-3 is the issue's accuracy target.
+# ranges of ~1; measured coefficient errors 1e-5 relative.  1e-3 is the accuracy target.
 RTOL = 1e-3
 
 

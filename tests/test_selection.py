@@ -25,8 +25,8 @@ def _fit_auto(name, scheme, exact_accelerations=True, **kw):
     return model, lib.coefficients(s.hamiltonian), setup.n_terms
 
 
-# the double pendulum's cells are slow: actuated 29 s (the slowest of make test, stop 29's
-# machine), passive 10 s (1.4M passive supports)
+# the double pendulum's cells are slow: actuated 29 s (the slowest of make test when
+# measured), passive 10 s (1.4M passive supports)
 CELLS = [("spherical", "actuated"), ("spherical", "passive"),
          pytest.param("double", "actuated", marks=pytest.mark.slow),
          pytest.param("double", "passive", marks=pytest.mark.slow),

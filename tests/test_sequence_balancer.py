@@ -1,4 +1,4 @@
-"""The branch-and-bound sequence balancer near the upright (issue 16)."""
+"""The branch-and-bound sequence balancer near the upright."""
 
 import itertools
 
@@ -16,7 +16,7 @@ FORCES = (-10.0, 0.0, 10.0)
 
 @pytest.fixture(scope="module")
 def corner():
-    """The light-cart, short-pole plant of issue 16: one push changes the pole rate by
+    """The light-cart, short-pole plant of the family: one push changes the pole rate by
     F dt / (m_c L) = 10 * 0.05 / (0.8 * 0.7) = 0.89 rad/s, nearly the band's width of 1 rad/s."""
     system = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
     return system, SwingUpMPC(system, balance={"method": "sequence"})
@@ -193,16 +193,16 @@ def test_cart_speed_term_is_the_centre_of_mass_speed(light, corner):
 def test_cart_speed_term_keeps_the_light_cart_on_the_track(light):
     """Start 11 of the family benchmark on 0.5/0.05/1.2 (exact model): without the term the
     cart creeps to the track's margin and the pole leaves the band in the last 3 s; with it
-    the episode succeeds (measured with the 16-interval horizon, without the escape term and
-    handing over at the centre, as in stop 26, kept here; with stop 30's 28 this start fails
-    either way, and with the escape term of stop 31 it succeeds either way)."""
+    the episode succeeds (measured with a 16-interval horizon, without the escape term and
+    handing over at the centre, kept here; with the default horizon of 28 this start fails
+    either way, and with the escape term it succeeds either way)."""
     from lsindy_cas.paper.swingup import random_starts, run_episode
     system, _ = light
     x0 = random_starts(20, 0)[11]
-    stop26 = {"method": "sequence", "horizon": 16, "escape_weight": 0.0}
-    on = SwingUpMPC(system, balance=stop26, handover=0.0)
+    short_horizon = {"method": "sequence", "horizon": 16, "escape_weight": 0.0}
+    on = SwingUpMPC(system, balance=short_horizon, handover=0.0)
     assert run_episode(on, Plant(system, 0.05), x0).success
-    off = SwingUpMPC(system, balance=dict(stop26, speed_weight=0.0), handover=0.0)
+    off = SwingUpMPC(system, balance=dict(short_horizon, speed_weight=0.0), handover=0.0)
     assert not run_episode(off, Plant(system, 0.05), x0).success
 
 
@@ -336,9 +336,10 @@ def test_lean_correction_catches_a_plant_whose_pole_turns_over_faster():
 
 @pytest.mark.slow
 def test_without_the_lean_correction_that_plant_is_lost():
-    """The same start without the lean term: the pole touches the rate band in the last 3 s
-    (the family's stop 31 outcome, identified and exact model alike).  Stop 31's balancer: with
-    the cost of the pole's turn between samples (stop 34) this start is held without it too."""
+    """The same start without the lean term, the sequence balancer's turn costs off
+    (``between_weight=0``, ``success_weight=0``): the pole touches the rate band in the last 3 s
+    (as in the family benchmark, identified and exact model alike).  With the cost of the pole's
+    turn between samples this start is held without the lean term too."""
     from lsindy_cas.paper.swingup import run_episode
     true, x0 = _heavier_cart_shorter_pole()
     ctrl = SwingUpMPC(systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7), adapt_lean=False,
@@ -350,9 +351,9 @@ def test_without_the_lean_correction_that_plant_is_lost():
 @pytest.mark.slow
 def test_the_turn_between_samples_is_what_lost_this_start():
     """Family start 31 of 0.6/0.2/1.0, plant cart -10 %, pole mass and length +10 % (as drawn),
-    the nominal model's controller.  Without the turn's cost (stop 33's balancer) the pole stays
+    the nominal model's controller.  Without the turn's cost (``between_weight=0``) the pole stays
     inside the success band at every sample of the last 3 s but leaves it between two (the
-    rate turning inside a period): lost.  With it (stop 34's balancer, the success band's own
+    rate turning inside a period): lost.  With it (``between_weight=1``, the success band's own
     term off) the episode succeeds and the last 3 s stay inside at every one of the 5 instants
     per period."""
     from lsindy_cas.paper.swingup import random_starts, run_episode, wrap_angle

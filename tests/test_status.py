@@ -1,5 +1,5 @@
 """The fit's status: "ok" only when the data determine the model; otherwise "undetermined" with
-reasons — never a wrong model with status ok (issue 13, parts 4–5; issue 17, item 6)."""
+reasons — never a wrong model with status ok."""
 import json
 import subprocess
 import sys
@@ -65,7 +65,7 @@ def test_held_input_changing_every_sample_clean_automatic_k():
 
 
 def test_passive_spherical_other_length_from_files_is_exact_and_ok():
-    """The issue's failing case (passive spherical, L = 0.3, files without accelerations): φ̇
+    """A case that once failed (passive spherical, L = 0.3, files without accelerations): φ̇
     peaks at 130 rad/s between samples of 46 and 51 near the pole; the smoother's likelihood took
     that for noise (σ̂ = 18 rad/s on clean data) and the model came out 100 % wrong.  Now the
     column is left as measured (its likelihood noise is 3e4× the robust estimate) and the model is

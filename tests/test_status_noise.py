@@ -1,4 +1,4 @@
-"""The status under measurement noise (issue 13): fits the data determine get "ok" (no false
+"""The status under measurement noise: fits the data determine get "ok" (no false
 alarms), fits the data do not determine do not (no silent wrong answers).
 
 The cells are those of ``benchmarks/noise_sweep.py`` (paper protocol: one 1 s run from the paper's

@@ -1,4 +1,4 @@
-"""Tests of the track guard (issue 16): the cart never leaves the track, and the guard leaves a
+"""Tests of the track guard: the cart never leaves the track, and the guard leaves a
 controller that keeps the track alone."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The pole's viability kernel at the upright (control/viability.py, issue 16)."""
+"""The pole's viability kernel at the upright (control/viability.py)."""
 
 import itertools
 
@@ -79,8 +79,8 @@ def test_sub_steps_are_the_exact_discretisation():
     (0.72, 0.693, False),   # the corner with the cart 10 % lighter, the pole 1 % shorter: 1.0
     (1.0, 1.0, True),       # the paper's plant, kick 0.5 rad/s
 ])
-def test_issue_numbers_kick_089_holdable_kick_1_not(mc, L, holdable):
-    """Issue 16: on the upright linearisation, kick 0.89 rad/s is held from 8 of 8 settled
+def test_kick_089_holdable_kick_1_not(mc, L, holdable):
+    """On the upright linearisation, kick 0.89 rad/s is held from 8 of 8 settled
     starts, kick 1.0 rad/s (the band exactly one kick wide) from none."""
     K = pole_kernel(systems.cart_pendulum(mc=mc, mp=0.2, L=L).ode(), 0, 1, np.pi, 0.05, FORCES)
     s = settled_starts()

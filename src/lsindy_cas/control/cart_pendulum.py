@@ -159,8 +159,8 @@ class SwingUpMPC(DiscreteInputMPC):
         (:class:`~lsindy_cas.control.track_guard.TrackGuard`): where the model predicts that
         the chosen force followed by its stopping policy could not keep the cart inside
         ``track_limit``, apply the level that reaches least far (counted in
-        ``stats.n_guard``); a dict passes ``margin``, ``factor``, ``horizon`` to it.  ``False`` is the behaviour before issue 16 (the cart
-        ran to 10.5 m on a plant that cannot be balanced).
+        ``stats.n_guard``); a dict passes ``margin``, ``factor``, ``horizon`` to it.  ``False``
+        turns it off (the cart then ran to 10.5 m on a plant that cannot be balanced).
     handover : float, optional
         Distance (m) from the track's centre at which the swing-up is to hand the pole to the
         sequence balancer, on the side the cart's slower creep leaves from
@@ -223,9 +223,9 @@ class SwingUpMPC(DiscreteInputMPC):
     #: default warm SQP cap where the sequence balancer is chosen (elsewhere 7)
     SEQUENCE_MAX_ITER = 10
     #: default ``handover`` (m) where the pole turns round only beyond the balancer's angle
-    #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md, stop 31)
+    #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md)
     HANDOVER_OFFSET = 0.6
-    #: the pulse balancer's ``brake_fraction`` (its own default 0.5; stop 38, control history)
+    #: the pulse balancer's ``brake_fraction`` (its own default 0.5; docs/history/control.md)
     PULSE_BRAKE = 0.45
     #: ``adapt_model="stall"``: the estimate is taken up once the pole stayed this far (rad) from
     #: the upright (swung < 1.14 rad from hanging) for this long (s), a stalled swing-up ...
@@ -292,7 +292,7 @@ class SwingUpMPC(DiscreteInputMPC):
         # 1 - cos(a) = 2 sin(a/2)^2: a residual whose square is wrap-invariant
         half = (x[ip] - self.upright) / 2
         # arriving at the top slowly: the pole rate beyond a band, weighted by cos^4(phi / 2);
-        # a fast plan is caught only if the model is right (10 % off: it spins around, issue 16)
+        # a fast plan is caught only if the model is right (10 % off: it spins around)
         top = ca.fmax(ca.fabs(x[2 + ip]) * ca.cos(half) ** 4 - w["top_rate_band"], 0)
         r = ca.vertcat(ca.sqrt(2 * w["angle"]) * ca.sin(half),
                        ca.sqrt(w["position"]) * x[ic] / self.track_limit,
@@ -411,7 +411,7 @@ class SwingUpMPC(DiscreteInputMPC):
         """With ``balance=True`` and the pulse balancer chosen from the model's kick: switch to
         the sequence balancer, for the rest of the episode, once the online correction's
         estimate of the push (``kick * (1 + gain)`` of the pole rate) reaches
-        :attr:`SEQUENCE_KICK` -- the plant's push is then too large for a few pulses (issue 16:
+        :attr:`SEQUENCE_KICK` -- the plant's push is then too large for a few pulses (measured:
         start 42 of the 80 mismatched ones, a plant 10 % lighter and shorter than the model,
         kick 0.62 rad/s, was lost by the pulse balancer and held by the sequence one)."""
         pulse, sequence, kick = self._escalation

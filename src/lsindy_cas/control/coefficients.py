@@ -8,7 +8,7 @@ correction of :mod:`.correction` fits the one-step prediction errors with a few 
 upright but not the swing-up's nonlinear plan: re-run with the plant's own equations in the
 relaxed NLP only (the balancer and its correction unchanged), the mismatched family episodes
 of 0.6/0.2/1.0 and 0.7/0.4/0.8 whose patterns lost most went 5 -> 7 of 8 and 15 -> 17 of 18
-(``benchmarks/family_true_model.py --plan-only``, issue 16).
+(``benchmarks/family_true_model.py --plan-only``).
 
 :func:`parametric_form` rebuilds the model's ODE as a function of its coefficient vector
 (:class:`~lsindy_cas.mechanics.parametric.ParametricDynamics`, checked against ``model.ode()``);

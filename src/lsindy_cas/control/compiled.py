@@ -4,15 +4,15 @@ CasADi evaluates the expanded SX functions of an NLP in its virtual machine at a
 instruction; the swing-up's Hessian of the Lagrangian (40 RK4 intervals) has about 125,000, so
 one evaluation costs about 1 ms, most of an interior-point iteration.  Compiled to C (the system
 compiler at ``-O1``) they run several times faster: fatrop's iteration on the swing-up OCP went
-from 1.5 to 0.36 ms (CPU time, loaded machine, issue 16).  What is compiled is generated from the
-staged NLP (:mod:`~lsindy_cas.control.staged`: the derivatives loop over one interval's code), so
-the first build of a model compiles in about 8 s (stop 36; from the expanded NLP, before, gcc
-needed 35-60 s).  The compiled code is kept on disk: the controller's solvers (fatrop, IPOPT:
-the whole solver with its binary embedded, CasADi's serialisation) or functions (the SQP's
-Hessian and Jacobian, handed to ``sqpmethod`` as ``hess_lag``/``jac_fg``) are stored under a key
-hashing everything they depend on (the NLP's own serialisation, the solver and its options, the
-versions of lsindy_cas and CasADi), so a controller built before for the same model and options
-loads in about a second.
+from 1.5 to 0.36 ms when compiled (CPU time, loaded machine).  What is compiled is generated
+from the staged NLP (:mod:`~lsindy_cas.control.staged`: the derivatives loop over one
+interval's code), so the first build of a model compiles in about 8 s (compiling the expanded
+NLP instead took 35-60 s).  The compiled code is kept on disk: the controller's solvers
+(fatrop, IPOPT: the whole solver with its binary embedded, CasADi's serialisation) or
+functions (the SQP's Hessian and Jacobian, handed to ``sqpmethod`` as ``hess_lag``/``jac_fg``)
+are stored under a key hashing everything they depend on (the NLP's own serialisation, the
+solver and its options, the versions of lsindy_cas and CasADi), so a controller built before
+for the same model and options loads in about a second.
 
 :func:`resolve_jit` chooses for ``jit=None`` (the controllers' default): compiled when gcc is
 on the PATH, unless ``$LSINDY_JIT`` says otherwise (``0``/``off``: never, ``1``/``on``: always,
@@ -24,8 +24,8 @@ the cache, and then every build compiles).  A missing, unreadable or corrupt fil
 an unwritable folder only means nothing is saved.  Files take about 5 MB per model and options
 (the SQP's Hessian and Jacobian, fatrop with its NLP) and may be deleted at any time.  Nothing
 is left in the temporary folder: CasADi's C sources and libraries are
-removed once loaded (before issue 16 a ``/tmp/lsindy_jit_*`` folder, often with a 2 MB
-library, stayed behind per compile and per load).  Loading also writes an empty ``jit_tmp*.c``
+removed once loaded (otherwise a ``/tmp/lsindy_jit_*`` folder, often with a 2 MB
+library, would stay behind per compile and per load).  Loading also writes an empty ``jit_tmp*.c``
 that CasADi removes when the Function is freed; it goes to the cache folder's ``jit-load``
 (cache off: a per-process ``lsindy_jit_load_*`` folder, removed at exit if every Function was
 freed by then, else left empty).  A Function still alive at exit is never freed, so its file

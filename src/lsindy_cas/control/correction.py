@@ -14,7 +14,7 @@ instance and hands it to whatever predicts with it (its lookahead, the balancer)
 With ``lean=(pole_index, upright)`` a third term, ``stiffness_i * sin(x_prev[pole_index] -
 upright)``, fits what gravity's torque does differently on the plant (a pole 10 % shorter turns
 over 10 % faster): near the upright the offset cannot follow it, as the lean changes sign with
-every push.  ``SwingUpMPC`` turns it on where its sequence balancer balances (issue 16, stop 32).
+every push.  ``SwingUpMPC`` turns it on where its sequence balancer balances.
 """
 
 from __future__ import annotations

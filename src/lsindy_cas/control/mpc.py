@@ -126,7 +126,7 @@ class DiscreteInputMPC:
         :attr:`plan_gain_index` (by default the actuated coordinate's velocity).
     solve_balanced : bool
         Whether to solve the relaxed NLP also on steps a subclass's own rule decides (the
-        balancer), only to keep the warm start (the behaviour before issue 16).  By default
+        balancer), only to keep the warm start.  By default
         such a step costs only the rule, and the plan is shifted one interval per step
         (``stats.n_resumed`` counts the solves that resume from it).
     coefficients : (casadi.Function, array_like), optional

@@ -26,7 +26,7 @@ not; :func:`~lsindy_cas.control.upright.turn_excess`): success is judged between
 The ``success_weight`` terms (on where :attr:`turnaround`) price leaving the success band itself
 (``c``: the angle and the rate, ``success`` = (0.1 rad, 0.5 rad/s); and the turn's peak) linearly:
 the planning bands' squared excesses alone let a plan keep a rate 0.04 rad/s inside its band at
-the price of a turn 0.003 rad outside the success band (docs/history/control.md, stop 35).
+the price of a turn 0.003 rad outside the success band (docs/history/control.md).
 
 Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
 by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
@@ -91,7 +91,7 @@ class SequenceBalancer(PulseBalancer):
     step, ode, levels, cart_index, pole_index, upright, track_limit, dt
         As for :class:`~lsindy_cas.control.balancer.PulseBalancer`.
     horizon : int
-        Planned intervals ``N`` (1.4 s sees a hover's exit; 16 lost 9 of 180 more, stop 30).
+        Planned intervals ``N`` (1.4 s sees a hover's exit; a horizon of 16 lost 9 of 180 more).
     max_frontier : int
         Most partial sequences kept per depth (beyond it the search is a beam, not proven).
     rate_band : float, optional
@@ -176,7 +176,7 @@ class SequenceBalancer(PulseBalancer):
     SPEED_WEIGHT = 300.0
     #: factor on the escape term there (0.5/0.05/1.2, 60 starts: 26 -> 32 nominal)
     ESCAPE_WEIGHT = 1.0
-    #: the success band's own term, where the pole turns round inside it (stop 35; on the
+    #: the success band's own term, where the pole turns round inside it (on the
     #: light plant, where it does not, mismatched 36 -> 32/47)
     SUCCESS_WEIGHT = 1e3
 

@@ -43,7 +43,7 @@ def default_robust_solver():
     else ``"ipopt"``.
 
     fatrop exploits the stage structure and reaches IPOPT's optima about three times faster;
-    with ``jit=True`` it is the configuration whose step p99 meets 20 ms (issue 16).  Its past:
+    with ``jit=True`` it is the configuration whose step p99 meets 20 ms.  Its past:
     it hung (inside its linear solver, for minutes) on two family-benchmark episodes.  The cause
     was ours -- sqpmethod had reported success for a diverged plan (shooting gaps of 1e82) that
     was shifted into the warm start -- and is fixed: a success claim with the constraints

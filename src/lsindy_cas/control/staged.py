@@ -10,7 +10,7 @@ Why both: the SX NLP runs fastest in CasADi's virtual machine, but compiled to C
 it is one function per derivative with the horizon unrolled (a 107,000-instruction Hessian on the
 paper's plant): gcc needed 35-60 s for the first build of a model.  Generated from the staged
 graph, the derivatives loop over one interval's code: the first build compiles in about 8 s and
-the steps are as fast (stop 36, ``benchmarks/bench_mpc.py``).  Values and derivatives agree with
+the steps are as fast (``benchmarks/bench_mpc.py``).  Values and derivatives agree with
 the SX NLP to rounding (about 1e-15 on the swing-up; ``tests/test_staged.py`` checks 1e-13).
 """
 

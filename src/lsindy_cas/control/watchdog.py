@@ -8,7 +8,7 @@ result is discarded and its worker waits, idle, on a queue nobody fills; if it n
 the thread keeps spinning until the process exits (it is a daemon) -- a lost core rather than a
 controller that hangs.
 :class:`~lsindy_cas.control.shooting.MultipleShootingNLP` uses it for fatrop, whose linear
-solver has looped without end from a bad guess (issue 16).
+solver has looped without end from a bad guess.
 """
 
 from __future__ import annotations
