@@ -9,8 +9,8 @@ them (a change without it means the runs differ in something else, e.g. compiled
 uncompiled code).  Writes ``compare.json`` and ``compare.md`` to ``--out``.
 
     python benchmarks/compare_family.py --out DIR \\
-        --base benchmarks/results/family_60starts_stop36.json \\
-        --new benchmarks/results/family_60starts.json                    # a second
+        --base /tmp/before/family.json \\
+        --new benchmarks/results/family_60starts.json        # a run before a change, one after
 """
 
 from __future__ import annotations

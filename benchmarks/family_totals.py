@@ -6,8 +6,8 @@ successes of every run and their sum, its share and whether it is at least 95 %.
 ``family_totals.json`` and ``family_totals.md`` to ``--out``.
 
     python benchmarks/family_totals.py --out DIR --json \\
-        benchmarks/results/family_60starts.json benchmarks/results/family_seed1_all_stop38.json \\
-        benchmarks/results/family_seed2_all_stop38.json benchmarks/results/family_seed3_all_stop38.json
+        benchmarks/results/family_60starts.json benchmarks/results/family_seed1_all.json \\
+        benchmarks/results/family_seed2_all.json benchmarks/results/family_seed3_all.json
 """
 
 from __future__ import annotations
