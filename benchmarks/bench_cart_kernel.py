@@ -10,7 +10,8 @@ near 0 where the 2-D share is not says: the pole can be held, but not with the c
 (the failures of ``bench_cart_drift.py`` classed ``drift``), if the grid is fine enough:
 coarse grids err towards "not viable" (1.2/0.1/0.5, balanced 20/20 in closed loop: 0.000 on
 20x20, 0.868 on 40x40), and on 40x40 (minutes, ~2 GB) 0.7/0.4/0.8 (19/20 nominal) still reads
-0.000.  Run two grids (``--grid``) and compare; docs/history/control.md has the numbers.
+0.000.  Run two grids (``--grid``) and compare; ``benchmarks/results/cart_kernel.md`` has
+the numbers.
 
     python benchmarks/bench_cart_kernel.py --out DIR              # 4 plants, grid 20x20 (~1 min)
     python benchmarks/bench_cart_kernel.py --out DIR --quick            # 2 plants, grid 12x12

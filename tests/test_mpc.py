@@ -715,7 +715,7 @@ def test_energy_weight_bad_input():
 @pytest.mark.slow
 def test_energy_weight_lifts_a_heavy_pendulum_from_rest():
     """2.0/0.5/1.5 from near rest at the bottom (start 20 of seed 0): without the energy term the
-    NLP stays at the bottom, where its angle cost is flat (docs/history/control.md)."""
+    NLP stays at the bottom, where its angle cost is flat (docs/swingup.md)."""
     plant = systems.cart_pendulum(mc=2.0, mp=0.5, L=1.5)
     x0 = random_starts(60, seed=0)[20]
     stuck = run_episode(SwingUpMPC(plant, dt=0.05, weights={"energy": 0.0}), Plant(plant, 0.05), x0)

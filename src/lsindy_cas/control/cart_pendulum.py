@@ -223,9 +223,9 @@ class SwingUpMPC(DiscreteInputMPC):
     #: default warm SQP cap where the sequence balancer is chosen (elsewhere 7)
     SEQUENCE_MAX_ITER = 10
     #: default ``handover`` (m) where the pole turns round only beyond the balancer's angle
-    #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/history/control.md)
+    #: band (0.5/0.05/1.2, 60 starts: 32 -> 42 nominal; docs/swingup.md)
     HANDOVER_OFFSET = 0.6
-    #: the pulse balancer's ``brake_fraction`` (its own default 0.5; docs/history/control.md)
+    #: the pulse balancer's ``brake_fraction`` (its own default 0.5; benchmarks/results/pulse_brake.md)
     PULSE_BRAKE = 0.45
     #: ``adapt_model="stall"``: the estimate is taken up once the pole stayed this far (rad) from
     #: the upright (swung < 1.14 rad from hanging) for this long (s), a stalled swing-up ...
@@ -312,7 +312,7 @@ class SwingUpMPC(DiscreteInputMPC):
             w["energy"] = 0.0
         if check_real("weights['energy']", w["energy"], nonnegative=True) > 0:
             # the plan's end: the pole's energy against its value upright (a slope where the
-            # angle cost is flat, hanging; 2.0/0.5/1.5 from rest: docs/history/control.md)
+            # angle cost is flat, hanging; 2.0/0.5/1.5 from rest: docs/swingup.md)
             try:
                 gap = _energy_gap(model, coords, ic, ip, self.upright)
                 r_end = ca.vertcat(r_end, ca.sqrt(w["energy"]) * gap(x))

@@ -26,7 +26,7 @@ not; :func:`~lsindy_cas.control.upright.turn_excess`): success is judged between
 The ``success_weight`` terms (on where :attr:`turnaround`) price leaving the success band itself
 (``c``: the angle and the rate, ``success`` = (0.1 rad, 0.5 rad/s); and the turn's peak) linearly:
 the planning bands' squared excesses alone let a plan keep a rate 0.04 rad/s inside its band at
-the price of a turn 0.003 rad outside the success band (docs/history/control.md).
+the price of a turn 0.003 rad outside the success band (docs/swingup.md).
 
 Search: breadth-first branch and bound.  The incumbent is the best of the previous plan shifted
 by one interval (warm start) and waiting throughout; at each depth every frontier sequence is
@@ -48,7 +48,7 @@ does not: it expects the cart to be returned by force).
 The escape term (on only where :attr:`turnaround` is False) penalises the lean ``phi*`` where a
 push first keeps the rate in the band (:func:`~lsindy_cas.control.upright.escape_lean`) beyond
 the angle band, so the plan avoids parking the pole at rest on top (the hover) where leaving it
-costs a band touch (docs/history/control.md).
+costs a band touch (docs/swingup.md).
 
 Viability: on the upright linearisation without cart friction the pole ``(phi, theta_dot)``
 does not depend on the cart, so whether it can be kept in the success band for ever has an exact
@@ -60,7 +60,7 @@ violation_weight``): the pole gets an infinite horizon.  Stopping a drifting car
 the kernel may forbid, so ``w`` fades as ``(1 - cart_urgency)^2`` (``viability_cart``).  Under
 mismatch each plan uses the kernel of the gain factor nearest the online correction's
 (``viability_schedule``; one robust over gains 0.9-1.1 is empty for a 0.89 rad/s plant).
-Measurements and the settings tried: docs/history/control.md.
+Measurements: docs/swingup.md.
 
 The cart's speed ``w = x_dot - (a_x / omega2) theta_dot`` (the centre of mass's, linearised) moves
 with the pushes only.  Where gravity cannot turn the pole back inside the success band (``omega *
@@ -172,7 +172,7 @@ class SequenceBalancer(PulseBalancer):
     """
 
     #: weight of the cart-speed term where the pole cannot turn around inside the band
-    #: (0.5/0.05/1.2: 8/20 -> 13/20 nominal starts; docs/history/control.md)
+    #: (0.5/0.05/1.2: 8/20 -> 13/20 nominal starts; docs/swingup.md)
     SPEED_WEIGHT = 300.0
     #: factor on the escape term there (0.5/0.05/1.2, 60 starts: 26 -> 32 nominal)
     ESCAPE_WEIGHT = 1.0

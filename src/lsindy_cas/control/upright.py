@@ -14,7 +14,7 @@ the other, and reversing it takes two pushes of one sign: a touch of the band.  
 pole over on the side the slow creep leaves from gives the cart the longest run before that.
 Where gravity turns the pole round inside the band but only beyond the balancer's 0.08 rad angle
 band (the family's 0.8/0.2/0.7, 0.6/0.2/1.0 and 0.7/0.4/0.8) the same side measured better too;
-below that lean it did not (docs/history/control.md).
+below that lean it did not (docs/swingup.md).
 
 Also here, on the upright linearisation's pole: the sequence balancer's pole terms
 (:func:`escape_lean`, :func:`peak_between` / :func:`turn_excess` for the pole's turn between two
@@ -224,7 +224,7 @@ def reversal_margin(balancer, angle=0.1, rate=0.5, periods=20, substeps=5, full=
     ``periods`` bounds the idle time: the longer the pole coasts between the pushes, the closer
     it must pass the unstable equilibrium, and a start error grows as ``exp(omega t)`` (about 20
     times in 1 s on the family's thin plants); with no bound the program finds knife-edge
-    reversals that rest on the top for seconds (docs/history/control.md).
+    reversals that rest on the top for seconds.
     """
     from scipy.linalg import expm
     from scipy.optimize import linprog
