@@ -156,6 +156,6 @@ class BeamSearch:
             self.plan = None
             return None
         self.plan = best_seq[1:] if len(best_seq) > 1 else None
-        self.captured = best_h == -np.inf
+        self.captured = bool(best_h == -np.inf)
         self.last_cost = best_h
         return int(best_seq[0])
