@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= results
 BENCH  ?= bench-results
 
-.PHONY: demo test test-all bench bench-sweep clean
+.PHONY: demo test test-slow test-all bench bench-sweep clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,9 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q -n auto -m "not slow"
+
+test-slow: $(STAMP)     # only the cases marked slow (CI runs them after make test)
+	$(PY) -m pytest -q -n auto -m slow
 
 test-all: $(STAMP)
 	$(PY) -m pytest -q -n auto
