@@ -358,12 +358,13 @@ def test_twenty_random_starts_all_succeed(ctrl, plant):
 
 def test_swingup_controller_options_reach_the_controller(monkeypatch):
     import lsindy_cas.paper.swingup as sw
+    import lsindy_cas.paper.swingup_cli as cli
 
     seen = {}
     monkeypatch.setattr(sw, "run_swingup", lambda model, **kw: seen.update(kw) or
                         {"scenarios": {}})
-    parser = sw.add_swingup_arguments(argparse.ArgumentParser())
-    sw.run_from_args(parser.parse_args(["--balance", "off", "--inexact-tol", "1e-3"]))
+    parser = cli.add_swingup_arguments(argparse.ArgumentParser())
+    cli.run_from_args(parser.parse_args(["--balance", "off", "--inexact-tol", "1e-3"]))
     assert seen["controller_options"] == {"balance": False, "inexact_tol": 1e-3}
 
 

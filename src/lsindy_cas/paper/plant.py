@@ -11,6 +11,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+#: the swing-up experiment's scenarios: the true plant, ±10 % parameter mismatch, measurement noise
+SCENARIOS = ("nominal", "mismatch", "noise")
+
 __all__ = ["Plant", "mismatched_cart_pendulum", "scenario_plant"]
 
 

@@ -14,8 +14,8 @@ last 3 s of a 10 s episode, checked every 10 ms, and |x| <= 2 m throughout.  The
 is the first time from which these angle and rate bounds hold until the end of the episode.
 
 :func:`run_swingup` runs the whole experiment and reports it; the ``lsindy swingup`` options are
-in :mod:`~lsindy_cas.paper.swingup_cli` (``Plant``, ``mismatched_cart_pendulum``,
-``scenario_plant``, ``add_swingup_arguments`` and ``run_from_args`` stay importable from here).
+in :mod:`~lsindy_cas.paper.swingup_cli`; ``Plant``, ``mismatched_cart_pendulum``,
+``scenario_plant`` and ``SCENARIOS`` (in :mod:`~lsindy_cas.paper.plant`) stay importable from here.
 """
 
 from __future__ import annotations
@@ -29,16 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from ..control.mpc import wrap_angle
-from .plant import Plant, mismatched_cart_pendulum, scenario_plant  # noqa: F401 (importable here)
-from .swingup_cli import add_swingup_arguments, run_from_args  # noqa: F401 (importable here)
+from .plant import SCENARIOS, Plant, mismatched_cart_pendulum, scenario_plant  # noqa: F401
 
 __all__ = ["Episode", "evaluate", "identify_cart_pendulum", "in_band", "random_starts",
            "released_at", "run_episode", "run_swingup", "scenario_stats", "summary_table"]
 
 ANGLE_TOL, RATE_TOL, WINDOW, T_END = 0.1, 0.5, 3.0, 10.0
-SCENARIOS = ("nominal", "mismatch", "noise")
-
-
 def in_band(X, *, upright=np.pi, pole=1):
     """Per sample of ``X`` (n_samples, 4), whether the pole is in the success band
     (``|angle - upright| < ANGLE_TOL`` and ``|rate| < RATE_TOL``)."""

@@ -83,7 +83,7 @@ def add_swingup_arguments(parser):
 
 def _scenarios(text):
     """``"nominal, noise"`` -> ``["nominal", "noise"]``, each checked; ``None``: all scenarios."""
-    from .swingup import SCENARIOS
+    from .plant import SCENARIOS
 
     if text is None:
         return list(SCENARIOS)
