@@ -6,7 +6,8 @@ import pytest
 
 from lsindy_cas import LagrangianSINDy, Library, Trajectory, load_trajectories, systems
 from lsindy_cas.cli import main
-from lsindy_cas.data.smoothing import estimate_velocities, smooth
+from lsindy_cas.data.smoothing import smooth
+from lsindy_cas.data.velocities import estimate_velocities
 from lsindy_cas.mechanics.euler_lagrange import simulate_ode
 from lsindy_cas.paper.table1 import PAPER_SETUPS, T_ACTUATED, T_PASSIVE, T_SCALE, U, compare
 

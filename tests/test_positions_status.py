@@ -11,7 +11,7 @@ import pytest
 
 from lsindy_cas import LagrangianSINDy, Library, Trajectory, load_trajectories
 from lsindy_cas.cli import main
-from lsindy_cas.data.smoothing import estimate_velocities
+from lsindy_cas.data.velocities import estimate_velocities
 
 CART_FILES = ["examples/data/cart_run1.csv", "examples/data/cart_run2.csv"]
 FEATURES = "cos(theta),sin(theta),theta_dot,x,x_dot"

@@ -76,7 +76,7 @@ def test_passive_spherical_other_length_from_files_is_exact_and_ok():
 
 
 def test_smoother_leaves_an_under_sampled_spike_alone_but_smooths_white_noise():
-    from lsindy_cas.data.smoothing import NOT_NOISE, _robust_noise, whittaker
+    from lsindy_cas.data.whittaker import NOT_NOISE, robust_noise, whittaker
 
     s = systems.spherical_pendulum(m=1.0, L=0.3)
     tr = s.simulate(t_end=T_PASSIVE, u=0.0)
@@ -87,7 +87,7 @@ def test_smoother_leaves_an_under_sampled_spike_alone_but_smooths_white_noise():
     y = np.sin(3 * tr.t) + 0.01 * rng.standard_normal(len(tr.t))
     z, noise, _, lam = whittaker(tr.t, y, undersmooth=0.1)
     assert lam > 0 and noise == pytest.approx(0.01, rel=0.15)
-    assert noise < NOT_NOISE * _robust_noise(tr.t, y[:, None], 3)[0] / 5
+    assert noise < NOT_NOISE * robust_noise(tr.t, y[:, None], 3)[0] / 5
 
 
 def test_passive_spherical_grid_slice_with_accelerations_is_exact_and_ok():

@@ -4,7 +4,7 @@ File format (DESIGN.md): CSV with a header row or NPZ with the same keys — ``t
 increasing, not necessarily evenly spaced), one column per coordinate ``<q>``, one ``<q>_dot`` per
 coordinate, optional ``Q_<q>`` (applied generalized force; missing = 0) and optional ``<q>_ddot``
 (exact accelerations).  Positions only: without any ``<q>_dot`` column the velocities are estimated
-from the positions (:func:`lsindy_cas.data.smoothing.estimate_velocities`) and the trajectory says
+from the positions (:func:`lsindy_cas.data.velocities.estimate_velocities`) and the trajectory says
 so (``velocities == "estimated"``); a file must have all ``<q>_dot`` columns or none.
 """
 from __future__ import annotations
@@ -77,7 +77,7 @@ class Trajectory:
         """A run measured by positions only (encoders, motion capture): velocities estimated.
 
         Same as ``Trajectory(t, q, None, coords, Q)``: q̇ is the derivative of the smoothed
-        positions (:func:`lsindy_cas.data.smoothing.estimate_velocities`), ``velocities`` is
+        positions (:func:`lsindy_cas.data.velocities.estimate_velocities`), ``velocities`` is
         ``"estimated"`` and ``qd_error`` holds each estimate's error std, which the fit carries
         into its noise model.  ``ValueError`` if the run is too short or the positions too coarse.
         """
@@ -107,7 +107,7 @@ class Trajectory:
         self.q = _as_matrix(self.q, N, n, f"{self.source}: q")
         self.Q = np.zeros((N, n)) if self.Q is None else _as_matrix(self.Q, N, n, f"{self.source}: Q")
         if self.qd is None:
-            from .smoothing import estimate_velocities     # lazy: smoothing imports this module
+            from .velocities import estimate_velocities
             est = estimate_velocities(t, self.q, self.Q, source=self.source)
             self.qd, self.qd_error, self.velocities = est.qd, est.qd_error, "estimated"
         self.qd = _as_matrix(self.qd, N, n, f"{self.source}: q_dot")

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .smoothing import _MAX_BLOCK, _basis, _blocks, _whittaker_block, force_switches
+from .whittaker import MAX_BLOCK, basis, blocks, force_switches, whittaker_block
 
 __all__ = ["VelocityEstimate", "estimate_velocities", "truncation_error", "MIN_POSITION_SAMPLES",
            "MIN_POSITION_STEPS"]
@@ -109,8 +109,8 @@ def truncation_error(t: np.ndarray, Z: np.ndarray) -> np.ndarray:
 
 
 def _velocity_block(t, Y, d, undersmooth, breaks):
-    Z, noise, _, lams = _whittaker_block(t, Y, d, None, undersmooth, breaks)
-    s, U = _basis(t, d, breaks)
+    Z, noise, _, lams = whittaker_block(t, Y, d, None, undersmooth, breaks)
+    s, U = basis(t, d, breaks)
     Dv = _derivative_matrix(t)
     V, err = Dv @ Z, np.empty_like(Z)
     for j in range(Y.shape[1]):
@@ -159,12 +159,12 @@ def estimate_velocities(t, q, Q=None, *, order: int = 3, undersmooth: float = 1.
     _check_positions(t, q2, source)
     breaks = force_switches(np.zeros_like(q2) if Q is None else np.asarray(Q, float))
     n = len(t)
-    if n <= _MAX_BLOCK:
+    if n <= MAX_BLOCK:
         Z, V, noise, err, trunc = _velocity_block(t, q2, order, undersmooth, breaks)
     else:                                      # overlapping blocks, each keeps its central part
         Z, V, err, trunc = (np.empty_like(q2) for _ in range(4))
         stats = []
-        for lo, hi, start, stop, br in _blocks(n, breaks):
+        for lo, hi, start, stop, br in blocks(n, breaks):
             Zb, Vb, noise_b, err_b, tr_b = _velocity_block(t[lo:hi], q2[lo:hi], order,
                                                            undersmooth, br)
             Z[start:stop], V[start:stop] = Zb[start - lo:stop - lo], Vb[start - lo:stop - lo]

@@ -145,7 +145,7 @@ def propagated_std(fit) -> np.ndarray | None:
     fixed-window rows, estimated velocities (their noise comes from the positions), runs longer
     than one smoothing block.
     """
-    from ..data.smoothing import _MAX_BLOCK, smoother_map
+    from ..data.whittaker import MAX_BLOCK, smoother_map
     bal, coef = fit.balance, np.asarray(fit.coef, float)
     S = np.flatnonzero(coef)
     if (bal.passive or bal.b is None or bal.dissipation is not None or not fit.smoothing
@@ -162,7 +162,7 @@ def propagated_std(fit) -> np.ndarray | None:
         rows = np.flatnonzero(groups == g)
         tr = sm.raw
         n = len(rows)
-        if tr.velocities != "measured" or n != tr.n_samples or n > _MAX_BLOCK:
+        if tr.velocities != "measured" or n != tr.n_samples or n > MAX_BLOCK:
             return None
         smoothed = np.allclose(bal.X[rows], sm.trajectory.X, rtol=0, atol=1e-12 * (
             1 + np.abs(sm.trajectory.X).max()))
