@@ -258,8 +258,8 @@ def rounded(model):
     """``(H, L, equations of motion)`` of a fitted model with each coefficient rounded to the
     place its standard error allows (:func:`round_coef`; ``MAX_DIGITS`` significant digits when
     the model has no standard errors), the equations derived from the rounded L."""
-    from .identify.estimator import combine
     from .mechanics.euler_lagrange import EulerLagrange
+    from .mechanics.linear import expression as combine
     lib = model.library
     coef_h = round_coef(model.coef_, getattr(model, "coef_std_", None))
     coef_l = round_coef(model.lagrangian_coef_, getattr(model, "lagrangian_coef_std_", None))

@@ -21,7 +21,7 @@ from .status import assess
 from .standard_errors import coefficient_errors
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import energy_variance, noise_model, row_gradients, sample_weights
-from .steps import _check_trajectories, _corrected, combine, drift_simulator, run_variance  # noqa
+from .steps import _check_trajectories, _corrected, drift_simulator, run_variance  # noqa
 
 __all__ = ["LagrangianSINDy"]
 

@@ -5,11 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..mechanics.linear import expression
-from ..symbolic.library import Library
 from .uncertainty import corrected_coef, corrected_null, noise_gram
 
-__all__ = ["combine"]
+__all__ = ["drift_simulator", "run_variance"]
 
 
 def _check_trajectories(trajectories, coords, what="trajectories") -> list:
@@ -37,11 +35,6 @@ def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
         return coef
     coef[S] = corrected_null(bal.A, S, N, scale_system)
     return coef
-
-
-def combine(lib: Library, coef):
-    """Σ_j coef_j θ_j over the non-zero coefficients (sympy)."""
-    return expression(lib, coef)
 
 
 def _fmt(expr, digits: int = 4) -> str:
