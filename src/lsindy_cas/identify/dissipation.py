@@ -26,7 +26,7 @@ import numpy as np
 from ..mechanics.rayleigh import check_velocity_only
 from ..symbolic.library import Library
 from .admissibility import REDUCIBLE_TOL
-from .balance import increments_preferred
+from .work import increments_preferred
 from .uncertainty import N_BLOCKS, T_CRIT, Jackknife
 
 __all__ = ["full_rayleigh", "fold_scale", "norm_term", "dissipation_library", "power_columns",

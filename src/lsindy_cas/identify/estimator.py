@@ -152,7 +152,7 @@ class LagrangianSINDy(FittedModel):
     def _balance(self, trajectories, passive=None, weights=None, dissipation=True, noise=None):
         """The energy balance of ``trajectories`` (with the dissipation columns projected out);
         ``noise``: per run, the noise left in each state column (picks the held-force work
-        rule, see ``balance.cumulative_work``)."""
+        rule, see ``work.cumulative_work``)."""
         if self._form(trajectories) == "derivative":
             if not all(tr.qdd is not None for tr in trajectories):
                 raise ValueError("form='derivative' needs accelerations <q>_ddot in every "

@@ -50,7 +50,7 @@ from typing import Callable
 
 import numpy as np
 
-from .balance import EnergyBalance
+from .energy_balance import EnergyBalance
 from .fitting import null_vector
 from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import SearchResult, best_subset, score_supports, visit

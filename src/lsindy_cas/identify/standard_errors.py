@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mechanics.legendre import legendre
-from .balance import EnergyBalance
+from .energy_balance import EnergyBalance
 from .uncertainty import N_BLOCKS, Jackknife
 
 __all__ = ["CoefErrors", "coefficient_errors", "propagated_std", "MIN_RUNS"]

@@ -31,7 +31,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._validate import check_int
-from .balance import EnergyBalance, _is_passive, _work
+from .energy_balance import EnergyBalance, is_passive
+from .work import work
 
 __all__ = ["compressed_balance", "block_edges", "STREAM_BUDGET", "MAX_STATES", "CHUNK"]
 
@@ -90,7 +91,7 @@ def compressed_balance(library, trajectories, form: str, *, passive: bool | None
         Right-hand side 0; default: when no power is fed in.
     hold, noise
         Integral form: the work integral's input hold and state noise (see
-        :func:`lsindy_cas.identify.balance.cumulative_work`).
+        :func:`lsindy_cas.identify.work.cumulative_work`).
     chunk : int, optional
         Samples per QR update (default ``CHUNK``); memory ~ chunk × p floats.
 
@@ -103,7 +104,7 @@ def compressed_balance(library, trajectories, form: str, *, passive: bool | None
     if form not in ("derivative", "integral"):
         raise ValueError(f"form must be 'derivative' or 'integral', got {form!r}")
     chunk = CHUNK if chunk is None else check_int("chunk", chunk, low=1)
-    passive = _is_passive(trajectories) if passive is None else passive
+    passive = is_passive(trajectories) if passive is None else passive
     p = len(library)
     centred = form == "integral"
     width = p + (0 if passive else 1) + (1 if centred else 0)
@@ -122,7 +123,7 @@ def compressed_balance(library, trajectories, form: str, *, passive: bool | None
                 return G if passive else np.hstack([G, P[lo:hi, None]])
             R = _run_blocks(rows, n, width, chunk)
         else:
-            W, rule = _work(tr, hold, None if noise is None else noise[k])
+            W, rule = work(tr, hold, None if noise is None else noise[k])
             rules.append(rule)
             total = np.zeros(width - 1)
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .balance import EnergyBalance
+from .energy_balance import EnergyBalance
 
 __all__ = ["NoiseModel", "noise_model", "row_gradients", "energy_variance", "sample_weights",
            "noise_gram", "corrected_coef", "corrected_null", "scaled_null", "Jackknife", "jackknife_t", "block_ids",
