@@ -19,8 +19,8 @@ def wrap(text: str) -> str:
 
 
 def split(text: str | None) -> list:
-    from ..symbolic.library import _split_top_level
-    return _split_top_level(text) if text else []
+    from ..symbolic.library import split_top_level
+    return split_top_level(text) if text else []
 
 
 def library(args):

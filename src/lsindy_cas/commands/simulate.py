@@ -45,12 +45,12 @@ def _input_file(path: str, coords: list):
     """Times and held forces (n_samples, n) of a recorded input (``t`` and ``Q_<q>`` columns)."""
     import numpy as np
 
-    from ..data.trajectory import _read_columns
+    from ..data.trajectory import read_columns
     from pathlib import Path
 
     if not Path(path).is_file():
         raise ValueError(f"--u-file {path}: no such file")
-    cols = _read_columns(Path(path))
+    cols = read_columns(Path(path))
     if "t" not in cols:
         raise ValueError(f"--u-file {path}: missing column 't'")
     names = [f"Q_{c}" for c in coords]

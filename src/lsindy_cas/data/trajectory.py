@@ -199,7 +199,7 @@ class Trajectory:
         src = str(path)
         if not path.is_file():
             raise ValueError(f"{src}: no such file")
-        cols = _read_columns(path)
+        cols = read_columns(path)
         if "t" not in cols:
             raise ValueError(f"{src}: missing column 't'")
         positions_only = not any(k.endswith("_dot") and not k.endswith("_ddot") for k in cols)
@@ -240,7 +240,7 @@ class Trajectory:
                    Q=stack("Q_{}", missing_is_zero=True), qdd=stack("{}_ddot"), source=src)
 
 
-def _read_columns(path: Path) -> dict:
+def read_columns(path: Path) -> dict:
     src = str(path)
     if path.suffix.lower() == ".npz":
         try:

@@ -19,7 +19,7 @@ passive data the smallest eigenvalue of a few nested suffixes bounds all childre
 Nodes are expanded best-first (lowest bound; among bounds at round-off, deepest first and then the
 lowest partial score, which makes the first descent the forward-stepwise model).  A node with two
 terms left (rank-deficient data) scores the leaves of all its children in one batch, exactly as
-the exhaustive search does (:func:`.search._score_chunks`).  Leaves are visited through the same rules
+the exhaustive search does (:func:`.search.score_chunks`).  Leaves are visited through the same rules
 (degenerate, reducible, then ``admissible``): a leaf becomes the incumbent only when it passes them
 all; with more rows than terms every hopeful leaf is examined as scored, with fewer (rank-deficient
 data, every bound 0 until deep, ~1 ms per examination) only a batch's best one when it beats every
@@ -53,8 +53,8 @@ from .fitting import coef_on_support, normalise_columns
 from .bnb_drive import check_inputs, drive, nothing_admissible
 from .bnb_leaves import SKIP_TOL, pair_positions, passive_bounds, trim_queue
 from .bnb_leaves import suffix_explained as _suffix_explained
-from .screening import _Basis, l1_order, screening_order, structure_of
-from .search import DEGENERACY_TOL, Candidate, SearchResult, _score_chunks
+from .screening import Basis, l1_order, screening_order, structure_of
+from .search import DEGENERACY_TOL, Candidate, SearchResult, score_chunks
 
 __all__ = ["branch_and_bound", "screening_order", "structure_of", "SCORE_RESOLUTION", "SKIP_TOL"]
 
@@ -145,7 +145,7 @@ class _Search:
             return None
         rest = self.order[last + 1:]
         if self.b is not None:
-            basis = _Basis(self.G, self.c)
+            basis = Basis(self.G, self.c)
             for m in U:
                 basis.add(m)
             Gd, cd = basis.deflated(rest)
@@ -197,7 +197,7 @@ class _Search:
                                ext.reshape(len(js), -1)]), axis=1)
         scores, deg = np.empty(len(S)), np.empty(len(S), dtype=bool)
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-            _score_chunks(self.G, self.GD, self.c, self.bb, S, scores, deg, None)
+            score_chunks(self.G, self.GD, self.c, self.bb, S, scores, deg, None)
         self.n_leaves += len(S)
         self.n_degenerate += int(deg.sum())
         S, scores = S[~deg], scores[~deg]

@@ -21,7 +21,7 @@ from .status import assess
 from .standard_errors import coefficient_errors
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import energy_variance, noise_model, row_gradients, sample_weights
-from .steps import _check_trajectories, _corrected, drift_simulator, run_variance  # noqa
+from .steps import check_trajectories, corrected_fit, drift_simulator, run_variance  # noqa
 
 __all__ = ["LagrangianSINDy"]
 
@@ -217,7 +217,7 @@ class LagrangianSINDy(FittedModel):
         self._validate()
         self._diss_active = None if self._diss_lib is None else list(range(len(self._diss_lib)))
         coords = self.library.coords.names
-        runs = _check_trajectories(trajectories, coords)
+        runs = check_trajectories(trajectories, coords)
         holds = self._holds(runs)
         if len(holds) == 1:
             return self._fit(runs, scale_trajectories, passive, progress, holds[0])._assess()
@@ -279,9 +279,9 @@ class LagrangianSINDy(FittedModel):
         lib = self.library
         coords = lib.coords.names
         # 1. inputs: trajectories in the library's coordinate order
-        trajectories = _check_trajectories(trajectories, coords)
+        trajectories = check_trajectories(trajectories, coords)
         scale_list = (None if scale_trajectories is None else
-                      _check_trajectories(scale_trajectories, coords, "scale_trajectories"))
+                      check_trajectories(scale_trajectories, coords, "scale_trajectories"))
         # 2. states: smoothed (integral form) with their noise variance
         states, state_var, smoothing = (self._prepare(trajectories) if prepared is None
                                          else prepared)
@@ -367,7 +367,7 @@ class LagrangianSINDy(FittedModel):
                                           admissible=adm, time_limit=self.time_limit,
                                           progress=progress)
                 support = sel_w.support
-            coef = _corrected(bal_w, grads, w, state_var, support, scale_system)
+            coef = corrected_fit(bal_w, grads, w, state_var, support, scale_system)
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
         return coef, bal_w, sel_w, adm
 

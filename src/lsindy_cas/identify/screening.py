@@ -51,7 +51,7 @@ def _state_sets(hess, banned, coordinate_sets) -> list:
     return [np.array(sorted(a), dtype=np.int64) for a in sorted(minimal, key=len) if a not in known]
 
 
-class _Basis:
+class Basis:
     """Rows R = L⁻¹ Ĝ[U, :] and y = L⁻¹ ĉ_U of a Cholesky factor over the terms U, grown by one."""
 
     def __init__(self, G, c):
@@ -89,7 +89,7 @@ def screening_order(G: np.ndarray, c: np.ndarray | None, forced, free, k: int,
     n_steps = min(len(free), max(2 * k, 8))
     chosen: list = []
     if c is not None:
-        basis = _Basis(G, c)
+        basis = Basis(G, c)
         for f in forced:
             basis.add(int(f))
         Gd, cd = basis.deflated(free)

@@ -181,11 +181,11 @@ def score_supports(A: np.ndarray, b: np.ndarray | None, supports: np.ndarray,
     scores = np.empty(len(supports))
     degenerate = np.empty(len(supports), dtype=bool)
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        _score_chunks(G, GD if D is not None else None, c, bb, supports, scores, degenerate, progress)
+        score_chunks(G, GD if D is not None else None, c, bb, supports, scores, degenerate, progress)
     return scores, degenerate
 
 
-def _score_chunks(G, GD, c, bb, supports, scores, degenerate, progress):
+def score_chunks(G, GD, c, bb, supports, scores, degenerate, progress):
     for lo in range(0, len(supports), _CHUNK):
         S = supports[lo:lo + _CHUNK]
         GS = _gather(G, S)

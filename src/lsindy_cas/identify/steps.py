@@ -10,7 +10,7 @@ from .uncertainty import corrected_coef, corrected_null, noise_gram
 __all__ = ["drift_simulator", "run_variance"]
 
 
-def _check_trajectories(trajectories, coords, what="trajectories") -> list:
+def check_trajectories(trajectories, coords, what="trajectories") -> list:
     if isinstance(trajectories, Trajectory):
         trajectories = [trajectories]
     try:
@@ -25,7 +25,7 @@ def _check_trajectories(trajectories, coords, what="trajectories") -> list:
     return [tr.reorder(coords) for tr in trajectories]
 
 
-def _corrected(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
+def corrected_fit(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
     """Coefficients (p,) on ``support`` with the regressor-noise Gram removed."""
     S = list(support)
     N = noise_gram(grads, state_var, S, w)

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import systems as _systems
 from .baselines import Kronic, Rollout, SINDyLasso, require_pysindy, rollout
-from ..symbolic.library import Library, _split_top_level
+from ..symbolic.library import Library, split_top_level
 from .table1 import PAPER_SETUPS, run_cell, scheme_data
 
 __all__ = ["Complexity", "Extrapolation", "claims", "complexity", "extrapolation", "markdown",
@@ -34,7 +34,7 @@ T_TRAIN, T_END, DT = 3.0, 6.0, 0.01          # paper Fig. 4: 3 s training + 3 s 
 def _features(name: str):
     setup = PAPER_SETUPS[name]
     system = _systems.PAPER_SYSTEMS[name]()
-    return setup, system, _split_top_level(setup.features)
+    return setup, system, split_top_level(setup.features)
 
 
 # ---------------------------------------------------------------------- Fig. 3

@@ -85,7 +85,7 @@ class Library:
         degree = check_int("degree", degree, low=1)
         c = coords if isinstance(coords, Coordinates) else Coordinates(coords)
         if isinstance(features, str):
-            features = _split_top_level(features)
+            features = split_top_level(features)
         # the terms of a definition seen before: their names from the disk cache (.fcache)
         parts = [c.names, [f if isinstance(f, str) else None for f in features], int(degree)]
         cached = None if None in parts[1] else fcache.read("polynomial", parts)
@@ -359,7 +359,7 @@ class _LazyTerms(Sequence):
         return list(other) + list(self)
 
 
-def _split_top_level(text: str) -> list[str]:
+def split_top_level(text: str) -> list[str]:
     """Split ``"cos(a),sin(a),b"`` at commas that are not inside parentheses."""
     parts, depth, cur = [], 0, ""
     for ch in text:
