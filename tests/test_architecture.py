@@ -136,3 +136,94 @@ def test_public_imports():
                "      load_trajectories.__name__, systems.cart_pendulum.__name__, SwingUpMPC.__name__)")
     assert out.split() == ["Library", "LagrangianSINDy", "Trajectory", "load_trajectories",
                            "cart_pendulum", "SwingUpMPC"]
+
+
+def _package_graph():
+    """Module -> the package's modules it imports (at module or function level)."""
+    mods = {_module_name(p): p for p in _modules()}
+    graph = {}
+    for name, path in mods.items():
+        deps = set()
+        for imp in imports_of(path):
+            parts = imp.split(".")
+            while parts:                       # the longest prefix that is a module of ours
+                cand = ".".join(parts)
+                if cand in mods and cand != name:
+                    deps.add(cand)
+                    break
+                parts.pop()
+        graph[name] = deps
+    return graph
+
+
+def _cycles(graph):
+    """Strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = set()
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.add(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(frozenset(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return set(out)
+
+
+# The one cycle left: the exhaustive search asks distributed for an ambient Dask client (to be
+# replaced by a search backend passed in explicitly).  Listed so that no other cycle can appear
+# and so that this entry must go when the cycle does.
+KNOWN_CYCLES = {frozenset({"lsindy_cas.identify.search", "lsindy_cas.identify.distributed"})}
+
+
+def test_no_import_cycles_but_the_known_one():
+    assert _cycles(_package_graph()) == KNOWN_CYCLES
+
+
+def test_the_cycle_finder_finds_a_planted_cycle():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert _cycles(graph) == {frozenset({"a", "b", "c"})}
+
+
+# private names still imported across modules (module, name): each one a place to mend
+KNOWN_PRIVATE = {("lsindy_cas.identify.distributed_bnb", "_POOL"),
+                 ("lsindy_cas.identify.distributed_bnb", "_Search"),
+                 ("lsindy_cas.identify.distributed_bnb", "_distributed"),
+                 ("lsindy_cas.identify.status", "_NULL_FACTOR")}
+
+
+def test_no_private_names_imported_across_modules_but_the_known_ones():
+    found = set()
+    for path in _modules():
+        module, is_package = _module_name(path), path.name == "__init__.py"
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.ImportFrom):
+                base = _resolve(module, is_package, node.level, node.module)
+                found.update((module, a.name) for a in node.names
+                             if a.name.startswith("_") and not a.name.startswith("__")
+                             and base != module)
+    assert found <= KNOWN_PRIVATE, sorted(found - KNOWN_PRIVATE)
+
+
+def test_every_module_is_on_the_architecture_map():
+    text = (PACKAGE.parents[1] / "docs" / "architecture.md").read_text()
+    missing = [str(p.relative_to(PACKAGE)) for p in _modules() if p.name not in text]
+    assert not missing, missing
