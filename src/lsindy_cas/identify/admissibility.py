@@ -28,6 +28,8 @@ import numpy as np
 
 from ..mechanics.legendre import velocity_linear
 from ..symbolic.library import Library
+from . import findings as F
+from .findings import Finding
 from .fitting import column_norms
 from .uncertainty import T_CRIT, Jackknife
 
@@ -45,12 +47,16 @@ REDUCIBLE_TOL = 1e-6
 # The batched pre-check of rule 5 (clearly_not_pd) marks a support only when λ_min(M) is below
 # −PD_MARGIN·max|λ|: far outside what the normal equations' round-off can move.
 PD_MARGIN = 1e-3
-REDUCIBLE_REASON = "a coefficient came out zero: the support is really a smaller one"
-NO_SCALE_REASON = "scale trial cannot fix the scale"
-EXCLUDED_REASON = ("uses a coordinate whose coefficient a constant input leaves "
-                   "undetermined (E and E − u·x fit equally)")
-LINEAR_REASON = ("has a term linear in the velocities, which no energy has (it cancels "
-                 "in H = p·q̇ − L): a momentum-like conserved quantity, not the energy")
+# the reasons are findings (identify/findings.py): decisions read their codes, never the words
+REDUCIBLE_REASON = Finding("a coefficient came out zero: the support is really a smaller one",
+                           F.REDUCIBLE)
+NO_SCALE_REASON = Finding("scale trial cannot fix the scale", F.NO_SCALE)
+EXCLUDED_REASON = Finding("uses a coordinate whose coefficient a constant input leaves "
+                          "undetermined (E and E − u·x fit equally)", F.EXCLUDED_COORDINATE)
+LINEAR_REASON = Finding("has a term linear in the velocities, which no energy has (it cancels "
+                        "in H = p·q̇ − L): a momentum-like conserved quantity, not the energy",
+                        F.VELOCITY_LINEAR)
+ADMISSIBLE = Finding("admissible", F.ADMISSIBLE)
 
 
 def reducible(G: np.ndarray, c: np.ndarray | None, S: np.ndarray, tol: float = REDUCIBLE_TOL,
@@ -191,28 +197,32 @@ class Admissibility:
             self._jack = Jackknife(self.balance)
         t = self._jack.t(S, coef[S], scale_system=self.scale_system)
         if np.any(t < T_CRIT):
-            return False, f"a term is not significantly non-zero (jackknife |t| < {T_CRIT})"
-        return True, "admissible"
+            return False, Finding(f"a term is not significantly non-zero (jackknife |t| < {T_CRIT})",
+                                  F.NOT_SIGNIFICANT, {"t_crit": T_CRIT, "t_min": float(np.min(t))})
+        return True, ADMISSIBLE
 
     def physical(self, support, coef):
         """Rules 3–5 only: prior terms present, every term used, kinetic part positive definite."""
         share = np.abs(coef) * self.norms
         top = share.max()
         if top == 0:
-            return False, "all coefficients are zero"
+            return False, Finding("all coefficients are zero", F.ALL_ZERO)
         weak = [self.library.names[j] for j in self.forced if share[j] <= PRIOR_SHARE_TOL * top]
         if weak:
-            return False, f"prior term(s) {', '.join(weak)} came out zero"
+            return False, Finding(f"prior term(s) {', '.join(weak)} came out zero", F.PRIOR_ZERO,
+                                  {"count": len(weak)})
         weak = [self.library.names[j] for j in support if share[j] <= PRIOR_SHARE_TOL * top]
         if weak:
-            return False, f"term(s) {', '.join(weak)} came out zero (the fit is a smaller model)"
+            return False, Finding(f"term(s) {', '.join(weak)} came out zero (the fit is a smaller "
+                                  "model)", F.COEFFICIENT_ZERO, {"count": len(weak)})
         M = np.einsum("sikp,p->sik", self.hess, coef)
         if self.balance is not None and self.balance.passive and self.scale_system is None:
             M = M * np.sign(np.trace(M[0]))    # a null vector without a scale: sign is free
         eig = np.linalg.eigvalsh(M)
         if not np.all(eig[:, 0] > PD_RTOL * np.maximum(np.abs(eig[:, -1]), 1e-300)):
-            return False, "kinetic part not positive definite (∂²E/∂q̇² has a non-positive eigenvalue)"
-        return True, "admissible"
+            return False, Finding("kinetic part not positive definite (∂²E/∂q̇² has a non-positive "
+                                  "eigenvalue)", F.NOT_POSITIVE_DEFINITE)
+        return True, ADMISSIBLE
 
 
 class _TermFacts:

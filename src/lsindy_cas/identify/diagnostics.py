@@ -22,7 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import findings as F
 from .balance import EnergyBalance
+from .findings import Finding
 from .fitting import coef_on_support, normalise_columns, null_vector
 
 __all__ = ["CONTENDER", "Diagnostics", "ConstantForceTrap", "FitRecord", "constant_force_trap", "diagnose",
@@ -137,9 +139,9 @@ class Diagnostics:
         Estimated noise std per state column (integral form), from the smoother.
     conserved : list of str
         Passive data: conserved quantities found besides the energy.
-    traps : list of str
-        Known traps, in plain words.
-    warnings : list of str
+    traps : list of Finding
+        Known traps, in plain words (a :class:`~.findings.Finding` is its message, with a code).
+    warnings : list of Finding
         Everything that makes the result doubtful; empty on well-posed data.
     hold : str or None
         The input hold the work integral used ("zoh", "smooth"; None without a work integral).
@@ -149,8 +151,8 @@ class Diagnostics:
         "measured", or "estimated" from the positions (positions-only data), or "mixed".
     status : {"ok", "undetermined"} or None
         The one verdict (:mod:`lsindy_cas.identify.status`); None before it is assessed.
-    status_reasons : list of str
-        Why the fit is undetermined, in plain words.
+    status_reasons : list of Finding
+        Why the fit is undetermined, in plain words (each with its code).
     checks : dict
         The numbers behind the verdict (simulation drift, condition number, ...).
     """
@@ -274,7 +276,8 @@ def _near_ties(fit: FitRecord, n: int = 5) -> list:
         ok, why = c.admissible, c.reason
         if ok is None and admissible is not None and c.score <= NEAR_TIE * base:
             coef = None if bal.passive else coef_on_support(bal.A, bal.b, c.support, None)[0]
-            ok, why = (False, "no coefficients") if coef is None else admissible(c.support, coef)
+            ok, why = ((False, Finding("no coefficients", F.NO_COEFFICIENTS)) if coef is None
+                       else admissible(c.support, coef))
         out.append(([lib.names[j] for j in c.support], float(max(c.score, _NUMERICAL_ZERO) / base),
                     bool(ok), why))
     return out
@@ -349,7 +352,7 @@ def diagnose(fit: FitRecord) -> Diagnostics:
         noise = np.sqrt(np.mean([s.noise ** 2 for s in fit.smoothing], axis=0))
         d.noise = {n: float(v) for n, v in zip(names, noise)}
     if fit.trap is not None:
-        d.traps.append(_constant_force_text(lib, fit.trap, S))
+        d.traps.append(Finding(_constant_force_text(lib, fit.trap, S), F.CONSTANT_INPUT))
     if bal.passive:
         _passive_report(d, fit)
     _warnings(d, fit)
@@ -382,9 +385,10 @@ def _passive_report(d: Diagnostics, fit: FitRecord):
     d.conserved = [_expression(lib, S, eta) for S, eta in found]
     d.conserved_found = found
     if d.conserved:
-        d.traps.append(f"the passive data conserve {1 + len(found)} quantities (energy and "
-                       f"{'; '.join(d.conserved)}); a scale trial is needed to tell them apart "
-                       "(the actuated record picked the energy)")
+        d.traps.append(Finding(f"the passive data conserve {1 + len(found)} quantities (energy and "
+                               f"{'; '.join(d.conserved)}); a scale trial is needed to tell them "
+                               "apart (the actuated record picked the energy)",
+                               F.CONSERVED_QUANTITIES, {"count": 1 + len(found)}))
 
 
 def _expression(lib, S, eta) -> str:
@@ -398,16 +402,21 @@ def _warnings(d: Diagnostics, fit: FitRecord):
     score, bal = fit.search.score, fit.balance
     held_out = d.held_out_fold_median
     if not bal.passive and max(score, held_out) > _POOR_FIT:
-        d.warnings.append(f"the data cannot identify the energy: the best model leaves "
-                          f"{100 * min(max(score, held_out), 1):.0f} % of the "
-                          f"{'held-out ' if held_out > score else ''}work unexplained — the runs "
-                          "may barely move, the noise may swamp them, or the library may lack the "
-                          "energy's terms")
+        d.warnings.append(Finding(
+            f"the data cannot identify the energy: the best model leaves "
+            f"{100 * min(max(score, held_out), 1):.0f} % of the "
+            f"{'held-out ' if held_out > score else ''}work unexplained — the runs "
+            "may barely move, the noise may swamp them, or the library may lack the "
+            "energy's terms", F.WORK_UNEXPLAINED,
+            {"unexplained": float(min(max(score, held_out), 1)), "held_out": held_out > score}))
     extra = d.null_dim - (1 if bal.passive else 0)
     if extra > 0:
-        d.warnings.append(f"the data cannot identify the energy uniquely: {extra} combination(s) "
-                          "of the chosen terms change the fit less than its residual does")
+        d.warnings.append(Finding(f"the data cannot identify the energy uniquely: {extra} "
+                                  "combination(s) of the chosen terms change the fit less than its "
+                                  "residual does", F.NULL_SPACE, {"extra": int(extra)}))
     ties = [t for t in d.near_ties if t[2] and t[1] <= NEAR_TIE]
     if ties:
-        d.warnings.append(f"{len(ties)} other admissible support(s) fit within {NEAR_TIE:g}× of the "
-                          "chosen one; more varied data would separate them")
+        d.warnings.append(Finding(f"{len(ties)} other admissible support(s) fit within "
+                                  f"{NEAR_TIE:g}× of the chosen one; more varied data would "
+                                  "separate them", F.NEAR_TIE, {"count": len(ties),
+                                                                "near_tie": NEAR_TIE}))

@@ -63,9 +63,10 @@ import uuid
 import numpy as np
 
 from .._validate import check_real
-from .admissibility import REDUCIBLE_REASON
+from . import findings as F
 from .bnb import _POOL, SCORE_RESOLUTION, _Search, branch_and_bound, structure_of
 from .bnb_drive import check_inputs, drive, nothing_admissible
+from .findings import code_of
 from .fitting import coef_on_support
 from .search import Candidate, SearchResult
 
@@ -393,7 +394,7 @@ class _Run:
         for c in sorted(s.candidates + self.candidates, key=lambda c: c.score):
             if c.support in seen:
                 continue
-            if c.reason == REDUCIBLE_REASON:
+            if code_of(c.reason) == F.REDUCIBLE:
                 if reducible_kept >= n_report:
                     continue
                 reducible_kept += 1

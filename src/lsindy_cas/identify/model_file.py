@@ -15,6 +15,7 @@ from .._io import atomic_write
 from .._version import __version__
 from ..mechanics.rayleigh import check_velocity_only
 from ..symbolic.library import Library
+from .findings import CODES, Finding, code_of
 
 __all__ = ["model_to_dict", "save_model", "load_model"]
 
@@ -41,7 +42,9 @@ def model_to_dict(model) -> dict:
         out["hold"] = model.hold_
     out["velocities"] = getattr(model, "velocities_", "measured")   # or "estimated"/"mixed"
     if getattr(model, "status_", None) is not None:
-        out["status"] = {"status": model.status_, "reasons": list(model.status_reasons_)}
+        reasons = list(model.status_reasons_)      # findings: their messages, and their codes
+        out["status"] = {"status": model.status_, "reasons": [str(r) for r in reasons],
+                         "codes": [code_of(r) for r in reasons]}
     if getattr(model, "coef_std_", None) is not None:      # standard errors, same keys as the terms
         names = model.library.names
         for key, coef, std in (("hamiltonian_std", model.coef_, model.coef_std_),
@@ -106,7 +109,7 @@ def load_model(cls, path):
     status = d.get("status")
     if isinstance(status, dict) and status.get("status") in ("ok", "undetermined"):
         model.status_ = status["status"]            # files before the status have none
-        model.status_reasons_ = [str(r) for r in status.get("reasons", [])]
+        model.status_reasons_ = _reasons(status)
     if isinstance(d.get("refinement"), dict):
         model.refinement_ = d["refinement"]
     model.energy_scale_ = d.get("energy_scale", "absolute")
@@ -133,6 +136,17 @@ def load_model(cls, path):
         model.std_method_ = d.get("std_method")
     check_kinetic(model, path)
     return model
+
+
+def _reasons(status: dict) -> list:
+    """The status reasons of a model file: findings when the file records their codes (files
+    before the codes, or with an unknown code, give plain strings)."""
+    reasons = [str(r) for r in status.get("reasons", [])]
+    codes = status.get("codes")
+    if not isinstance(codes, list) or len(codes) != len(reasons):
+        return reasons
+    return [Finding(r, c) if isinstance(c, str) and c in CODES else r
+            for r, c in zip(reasons, codes)]
 
 
 def check_kinetic(model, path, n_states: int = 64):

@@ -39,15 +39,18 @@
 
 All tests are dimensionless (ratios, fractions of a range, condition numbers).  The Python API
 never raises for an undetermined fit: the status is data (``model.status_``, ``model.ok_``).
+Every reason is a :class:`~.findings.Finding`: the verdict reads the findings' codes (which
+warnings to drop, which rejected supports are rivals), never their wording.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .admissibility import EXCLUDED_REASON, REDUCIBLE_REASON
+from . import findings as F
 from .dissipation import floored_chi
 from .fitting import coef_on_support, normalise_columns
 from .diagnostics import NEAR_TIE, _NULL_FACTOR
+from .findings import Finding, code_of
 from .selection import CHI_OK, chi_of
 from .standard_errors import propagated_std
 from .uncertainty import noise_model
@@ -103,8 +106,8 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
     Returns
     -------
     status : {"ok", "undetermined"}
-    reasons : list of str
-        Why it is undetermined, in plain words (empty when ok).
+    reasons : list of Finding
+        Why it is undetermined, in plain words (empty when ok); each with its ``code``.
     checks : dict
         The numbers behind the checks (simulation drift, condition number, scale resolution).
     """
@@ -116,14 +119,14 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
         extra = _passive_null(fit)
         checks["passive_null_dim"] = extra
         if extra == 0:
-            reasons = [w for w in reasons if "uniquely" not in w]
+            reasons = _without(reasons, F.NULL_SPACE)
     # the dissipation integrals' own quadrature error is part of what an exact model leaves
     d.chi = floored_chi(bal, fit.coef, d.chi)
     rel, least = _relative_errors(fit.coef, coef_std)
     if rel is not None:
         checks["largest_relative_std"] = rel
     if not bal.passive and d.null_dim > 0 and rel is not None and rel < 1 / np.sqrt(_NULL_FACTOR):
-        reasons = [w for w in reasons if "uniquely" not in w]
+        reasons = _without(reasons, F.NULL_SPACE)
     noise = _noise(fit)
     chi = None if noise is None else _chi(bal, noise, fit.support)
     if noise is not None and rel is not None and rel <= REL_STD_BAD:
@@ -131,29 +134,36 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
         # correct models) with every coefficient determined is the noise, not a poor model
         checks["chi_chosen"] = chi
         if chi <= CHI_OK:
-            reasons = [w for w in reasons if "work unexplained" not in w]
+            reasons = _without(reasons, F.WORK_UNEXPLAINED)
     prop, least_p = _relative_errors(fit.coef, propagated_std(fit))
     if prop is not None:
         # rule 7 with the correctly sized error where it can be built (module notes)
         checks["propagated_relative_std"] = prop
         if prop > REL_STD_PROPAGATED:
-            reasons.append(f"the coefficient of {fit.library.names[least_p]} is determined only to "
-                           f"±{100 * prop:.2g} % (standard error propagated from the estimated "
-                           f"noise; more than {100 * REL_STD_PROPAGATED:g} %): add runs, vary "
-                           "the input or reduce the noise")
+            reasons.append(Finding(
+                f"the coefficient of {fit.library.names[least_p]} is determined only to "
+                f"±{100 * prop:.2g} % (standard error propagated from the estimated "
+                f"noise; more than {100 * REL_STD_PROPAGATED:g} %): add runs, vary "
+                "the input or reduce the noise", F.STD_PROPAGATED,
+                {"relative_std": prop, "limit": REL_STD_PROPAGATED, "term": least_p}))
     elif rel is not None and rel > REL_STD_BAD:
-        reasons.append(f"the coefficient of {fit.library.names[least]} is determined only to "
-                       f"±{100 * rel:.2g} % (jackknife standard error; more than "
-                       f"{100 * REL_STD_BAD:g} %): add runs, vary the input or reduce the noise")
+        reasons.append(Finding(
+            f"the coefficient of {fit.library.names[least]} is determined only to "
+            f"±{100 * rel:.2g} % (jackknife standard error; more than "
+            f"{100 * REL_STD_BAD:g} %): add runs, vary the input or reduce the noise",
+            F.STD_JACKKNIFE, {"relative_std": rel, "limit": REL_STD_BAD, "term": least}))
     if np.isfinite(d.chi) and d.chi > CHI_BAD and d.held_out_error > CHI_MIN_ERROR:
-        reasons.append(f"the residual is {d.chi:.3g}× what the estimated noise explains: the model "
-                       "misses part of the data (a term outside the library, friction, or a "
-                       "wrong input hold)")
+        reasons.append(Finding(
+            f"the residual is {d.chi:.3g}× what the estimated noise explains: the model "
+            "misses part of the data (a term outside the library, friction, or a "
+            "wrong input hold)", F.RESIDUAL_ABOVE_NOISE, {"chi": float(d.chi), "limit": CHI_BAD}))
     cond = _condition(bal, fit.support, fit.scale_system)
     checks["condition"] = cond
     if cond > COND_BAD:
-        reasons.append(f"the chosen terms are nearly linearly dependent on these data (condition "
-                       f"number {cond:.2g}): their coefficients are not determined")
+        reasons.append(Finding(
+            f"the chosen terms are nearly linearly dependent on these data (condition "
+            f"number {cond:.2g}): their coefficients are not determined", F.ILL_CONDITIONED,
+            {"condition": cond, "limit": COND_BAD}))
     # (passive data: rejected momentum-like supports are conserved quantities, reported as such)
     # (kept under a constant input too: exempting it there let a cart fit 28 % off through as ok
     # in the noise sweep, σ = 1e-2, seed 1 — its rival fitted 8.5× better)
@@ -169,8 +179,10 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
         units = " in units of the noise each leaves"
     if better:
         terms, r, _, why = better[0]
-        reasons.append(f"a model the physical rules reject fits {1 / r:.3g}× better than the "
-                       f"chosen one{units} ({' + '.join(terms)}: {why}); the library may lack a term")
+        reasons.append(Finding(
+            f"a model the physical rules reject fits {1 / r:.3g}× better than the "
+            f"chosen one{units} ({' + '.join(terms)}: {why}); the library may lack a term",
+            F.INADMISSIBLE_RIVAL, {"ratio": float(1 / r), "in_noise_units": bool(units)}))
     # a conserved quantity linear in the velocities (a momentum) cannot be mixed into an energy
     # (the mixture has a velocity-linear term, which admissibility rejects): no ambiguity
     rivals = [(S, eta) for S, eta in d.conserved_found if not _momentum(fit.library, S, eta)]
@@ -178,16 +190,19 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
         unresolved = _scale_unresolved(fit, rivals)
         checks["scale_resolution"] = unresolved
         if any(u > 0 for u in unresolved):
-            reasons.append("the passive data conserve another quantity besides the energy and the "
-                           "scale trial does not tell them apart: record a longer or more varied "
-                           "actuated scale trial")
+            reasons.append(Finding(
+                "the passive data conserve another quantity besides the energy and the "
+                "scale trial does not tell them apart: record a longer or more varied "
+                "actuated scale trial", F.CONSERVED_UNRESOLVED,
+                {"unresolved": int(sum(u > 0 for u in unresolved))}))
     drift = _simulation_drift(fit, simulate)
     checks["simulation_drift"] = drift
     if drift > SIM_TOL:
-        reasons.append(f"a short simulation of the identified equations ({HORIZON} samples from "
-                       f"measured states) drifts by {100 * drift:.2g} % of the states' range "
-                       "(median over stretches): the energy balances the data but does not move "
-                       "like them")
+        reasons.append(Finding(
+            f"a short simulation of the identified equations ({HORIZON} samples from "
+            f"measured states) drifts by {100 * drift:.2g} % of the states' range "
+            "(median over stretches): the energy balances the data but does not move "
+            "like them", F.SIMULATION_DRIFT, {"drift": drift, "limit": SIM_TOL}))
     return (UNDETERMINED if reasons else OK), reasons, checks
 
 
@@ -228,11 +243,22 @@ def _momentum(lib, S, eta) -> bool:
     return all(lib.velocity_degree(j) == 1 for j, b in zip(S, big) if b)
 
 
+# rejection reasons that do not make a support a rival energy: a smaller model (a coefficient or
+# prior term came out zero), a coordinate a constant input leaves open, a term fitted to noise
+_NOT_RIVAL = frozenset({F.REDUCIBLE, F.EXCLUDED_COORDINATE, F.NOT_SIGNIFICANT, F.PRIOR_ZERO,
+                        F.COEFFICIENT_ZERO})
+
+
+def _without(reasons, code) -> list:
+    """The reasons without the findings of this code."""
+    return [w for w in reasons if code_of(w) != code]
+
+
 def _rival(reason) -> bool:
     """Is a rejected support a rival energy the rules exclude (not a smaller model, an excluded
-    coordinate, or a term fitted to noise)?"""
-    return bool(reason) and reason not in (REDUCIBLE_REASON, EXCLUDED_REASON) \
-        and "significantly" not in reason and "came out zero" not in reason
+    coordinate, or a term fitted to noise)?  Decided by the reason's code; a reason without one
+    (a user's own rule) counts as a rival."""
+    return bool(reason) and code_of(reason) not in _NOT_RIVAL
 
 
 def _condition(bal, S, scale_system=None) -> float:
