@@ -158,7 +158,7 @@ def task_overheads(client, n=100):
     """Round trip of an empty task, and of an empty branch-and-bound task (ms)."""
     import uuid
     from distributed import Variable
-    from lsindy_cas.identify.bnb import _Search
+    from lsindy_cas.identify.bnb import BnbSearch
     from lsindy_cas.identify.distributed_bnb import _run_task, _template
     rt = []
     for _ in range(n):
@@ -166,7 +166,7 @@ def task_overheads(client, n=100):
         client.submit(int, 1, pure=False).result()
         rt.append(time.perf_counter() - t0)
     rng = np.random.default_rng(0)
-    s = _Search(rng.normal(size=(50, 10)), rng.normal(size=50), 3, [], None, None, None, 1e-12,
+    s = BnbSearch(rng.normal(size=(50, 10)), rng.normal(size=50), 3, [], None, None, None, 1e-12,
                 10).start(False)
     tmpl, = client.scatter([[_template(s)]], broadcast=True)
     var = Variable(f"bench-{uuid.uuid4().hex}", client=client)

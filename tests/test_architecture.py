@@ -203,14 +203,7 @@ def test_the_cycle_finder_finds_a_planted_cycle():
     assert _cycles(graph) == {frozenset({"a", "b", "c"})}
 
 
-# private names still imported across modules (module, name): each one a place to mend
-KNOWN_PRIVATE = {("lsindy_cas.identify.distributed_bnb", "_POOL"),
-                 ("lsindy_cas.identify.distributed_bnb", "_Search"),
-                 ("lsindy_cas.identify.distributed_bnb", "_distributed"),
-                 ("lsindy_cas.identify.status", "_NULL_FACTOR")}
-
-
-def test_no_private_names_imported_across_modules_but_the_known_ones():
+def test_no_private_names_imported_across_modules():
     found = set()
     for path in _modules():
         module, is_package = _module_name(path), path.name == "__init__.py"
@@ -220,7 +213,7 @@ def test_no_private_names_imported_across_modules_but_the_known_ones():
                 found.update((module, a.name) for a in node.names
                              if a.name.startswith("_") and not a.name.startswith("__")
                              and base != module)
-    assert found <= KNOWN_PRIVATE, sorted(found - KNOWN_PRIVATE)
+    assert not found, sorted(found)
 
 
 def test_every_module_is_on_the_architecture_map():

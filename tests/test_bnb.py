@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
-from lsindy_cas.identify.bnb import _Node, _Search, branch_and_bound, screening_order
+from lsindy_cas.identify.bnb import _Node, BnbSearch, branch_and_bound, screening_order
 from lsindy_cas.identify.search import best_subset
 
 
@@ -17,7 +17,7 @@ def _problem(rng, m, p, passive):
     return A, rng.normal(size=m), None
 
 
-def _brute(search: _Search, S):
+def _brute(search: BnbSearch, S):
     """Score of support S from scratch: least-squares relative residual, or λ_min of Ĝ_S."""
     S = list(S)
     if search.b is None:
@@ -34,7 +34,7 @@ def test_every_child_bound_is_below_every_support_in_its_subtree(passive, seed, 
     rng = np.random.default_rng(seed)
     A, b, D = _problem(rng, 30, 9, passive)
     k, forced = 4, [int(rng.integers(9))] if seed % 2 else []
-    s = _Search(A, b, k, forced, None, D, None, 0.0, 5).start(screen)
+    s = BnbSearch(A, b, k, forced, None, D, None, 0.0, 5).start(screen)
     order = s.order
     # expand the root and one child, and check each child's bound against all of its leaves
     nodes = s.children(_Node((), 0.0, 1.0), batch=False)
@@ -123,7 +123,7 @@ def test_time_limit_returns_best_so_far_not_proven(rng, monkeypatch):
 def test_keyboard_interrupt_returns_best_so_far(rng, monkeypatch):
     import lsindy_cas.identify.bnb as bnb
     calls = {"n": 0}
-    original = bnb._Search.children
+    original = bnb.BnbSearch.children
 
     def children(self, node, batch=True):
         calls["n"] += 1
@@ -131,7 +131,7 @@ def test_keyboard_interrupt_returns_best_so_far(rng, monkeypatch):
             raise KeyboardInterrupt
         return original(self, node, batch)
 
-    monkeypatch.setattr(bnb._Search, "children", children)
+    monkeypatch.setattr(bnb.BnbSearch, "children", children)
     A = rng.normal(size=(40, 14))
     b = rng.normal(size=40)
     res = branch_and_bound(A, b, 4)                       # 4 terms: more than 12 nodes
@@ -334,7 +334,7 @@ def test_window_visit_order_agrees_with_exhaustive():
             p, k = 14, int(rng.integers(3, 6))
             A, b = rng.normal(size=(m, p)), rng.normal(size=m)
             ex = best_subset(A, b, k)
-            s = _Search(A, b, k, [], None, None, None, 1e-12, 5).start(False, window=True)
+            s = BnbSearch(A, b, k, [], None, None, None, 1e-12, 5).start(False, window=True)
             lower, proven, _, _ = drive([s], None, None)
             assert proven and s.winner.support == ex.support
             assert s.winner.score == pytest.approx(ex.score, rel=1e-8, abs=1e-12)

@@ -65,10 +65,10 @@ def test_a_shared_incumbent_prunes_in_the_workers(client):
     exhausted, i.e. proven (the bug this guards: proven = True with gap 0.08)."""
     import uuid
     from distributed import Variable
-    from lsindy_cas.identify.bnb import _Search
+    from lsindy_cas.identify.bnb import BnbSearch
     A, b, _ = _noisy(3)
     one = branch_and_bound(A, b, 5)
-    s = _Search(A, b, 5, [], None, None, None, 1e-12, 10).start(False)
+    s = BnbSearch(A, b, 5, [], None, None, None, 1e-12, 10).start(False)
     tmpl, = client.scatter([[distributed_bnb._template(s)]], broadcast=True)
     entries = [(key, node) for key, _, node in s.heap]
     out = {}

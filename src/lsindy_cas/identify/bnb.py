@@ -61,7 +61,7 @@ __all__ = ["branch_and_bound", "screening_order", "structure_of", "SCORE_RESOLUT
 # Scores are relative residuals (or eigenvalues of a unit-diagonal Gram matrix) in [0, 1] computed
 # from Gram matrices: two of them closer than this are a round-off tie.
 SCORE_RESOLUTION = 1e-12
-_POOL = 2000               # scored leaves kept as runners-up (best first)
+RUNNERS_UP = 2000               # scored leaves kept as runners-up (best first)
 _MAX_OPEN = 2_000_000      # open nodes kept (memory, ~0.5 GB): beyond, stop as not proven
 _MAX_QUEUED = 4_000_000    # leaves queued (~0.25 GB); beyond, the worse half dropped (not proven)
 _EAGER = 1                 # hopeful leaves of a batch examined at once (the rest queued)
@@ -75,7 +75,7 @@ class _Node:
     partial: float          # score of forced ∪ chosen terms alone (ordering only)
 
 
-class _Search:
+class BnbSearch:
     """State of one branch and bound (see the module notes)."""
 
     def __init__(self, A, b, k, forced, admissible, D, scale_system, tol, n_report,
@@ -118,7 +118,7 @@ class _Search:
         self.eager_all = A.shape[0] >= A.shape[1]      # see leaves(); no pair batches
         self.seen = set()                   # supports examined (shared by the trees of a search)
 
-    def clone(self) -> "_Search":
+    def clone(self) -> "BnbSearch":
         """A second tree on the same problem, sharing the examined supports and candidates."""
         other = copy.copy(self)
         other.pool_S, other.pool_s, other.pool_n, other.queue = [], [], 0, []
@@ -204,7 +204,7 @@ class _Search:
         self.pool_S.append(S)
         self.pool_s.append(scores)
         self.pool_n += len(scores)
-        if self.pool_n > 50 * _POOL:
+        if self.pool_n > 50 * RUNNERS_UP:
             self._trim_pool()
         order = np.argsort(scores, kind="stable")
         hopeful = order[scores[order] < self.incumbent - self.tol]
@@ -263,11 +263,11 @@ class _Search:
 
     def _trim_pool(self):
         S, s = np.vstack(self.pool_S), np.concatenate(self.pool_s)
-        keep = np.argsort(s, kind="stable")[:_POOL]
+        keep = np.argsort(s, kind="stable")[:RUNNERS_UP]
         self.pool_S, self.pool_s, self.pool_n = [S[keep]], [s[keep]], len(keep)
 
     # ----------------------------------------------------------------- search
-    def start(self, screen, window: bool = False) -> "_Search":
+    def start(self, screen, window: bool = False) -> "BnbSearch":
         """This search's tree over the free terms in library order (False), the screening order
         (True) or the basis-pursuit order ("l1", driven data; None when it cannot be had).  Among
         nodes bounded at round-off, depth first (lexicographic), or with ``window`` the node whose
@@ -392,7 +392,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                            n_report=n_report)
     if structure is None:
         structure = structure_of(admissible, p)
-    s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
+    s = BnbSearch(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, best_first)
     slices = None
     if screen == "auto":
         l1 = s.clone().start("l1" if s.eager_all else "l1-sparse") if b is not None else None

@@ -32,7 +32,7 @@ __all__ = ["CONTENDER", "Diagnostics", "ConstantForceTrap", "FitRecord", "consta
 
 NEAR_TIE = 2.0          # an admissible support within this factor of the winner's score is a near tie
 CONTENDER = 10.0        # runners-up listed in the report: within this factor of the winner's score
-_NULL_FACTOR = 10.0     # see _null_dim
+NEAR_NULL_FACTOR = 10.0     # see _null_dim
 _POOR_FIT = 0.5         # unexplained fraction of the work above which the data explain too little
 _NUMERICAL_ZERO = 1e-20  # passive scores (squared normalised singular values) this small are exact
 
@@ -259,8 +259,8 @@ def _null_dim(bal: EnergyBalance, S, score: float) -> int:
     """
     sv = np.linalg.svd(normalise_columns(bal.A[:, list(S)])[0], compute_uv=False)
     if bal.passive:
-        return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(sv[-1] ** 2, 1e-300)))
-    return int(np.sum(sv ** 2 <= _NULL_FACTOR * max(score, 1e-300) / bal.n_rows))
+        return int(np.sum(sv ** 2 <= NEAR_NULL_FACTOR * max(sv[-1] ** 2, 1e-300)))
+    return int(np.sum(sv ** 2 <= NEAR_NULL_FACTOR * max(score, 1e-300) / bal.n_rows))
 
 
 def _near_ties(fit: FitRecord, n: int = 5) -> list:

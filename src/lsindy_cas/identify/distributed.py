@@ -34,7 +34,7 @@ _CLIENT = contextvars.ContextVar("lsindy_dask_client", default=None)
 TASKS_PER_WORKER = 4          # subtree groups per worker: enough to balance, few to keep overhead low
 
 
-def _distributed():
+def dask_distributed():
     try:
         import distributed
     except ImportError as exc:
@@ -55,7 +55,7 @@ def connect(scheduler: str, n_workers: int | None = None, timeout: float = 5.0):
     """
     if not isinstance(scheduler, str) or not scheduler:
         raise TypeError("scheduler must be 'local' or an address such as tcp://127.0.0.1:8786")
-    d = _distributed()
+    d = dask_distributed()
     if scheduler == "local":
         import os
         n = n_workers or max(1, min(os.cpu_count() or 1, 8))
@@ -143,7 +143,7 @@ def score_all_distributed(client, A, b, k, forced=(), D=None, progress=None):
     """
     from .fitting import normalise_columns
     from .search import DEGENERACY_TOL
-    d = _distributed()
+    d = dask_distributed()
     p = A.shape[1]
     forced = sorted(set(int(j) for j in forced))
     free = np.array([j for j in range(p) if j not in set(forced)], dtype=np.int64)

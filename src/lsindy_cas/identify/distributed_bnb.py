@@ -64,7 +64,7 @@ import numpy as np
 
 from .._validate import check_real
 from . import findings as F
-from .bnb import _POOL, SCORE_RESOLUTION, _Search, branch_and_bound, structure_of
+from .bnb import RUNNERS_UP, SCORE_RESOLUTION, BnbSearch, branch_and_bound, structure_of
 from .bnb_drive import check_inputs, drive, nothing_admissible
 from .findings import code_of
 from .fitting import coef_on_support
@@ -80,7 +80,7 @@ _KEEP = 200           # candidates a task returns (the best-scoring ones: what d
 _clock = time.monotonic   # the driver's clock (a test replaces it; the workers keep their own)
 
 
-def _template(tree: _Search) -> _Search:
+def _template(tree: BnbSearch) -> BnbSearch:
     """What the workers need of a started tree: no open nodes, no records, no per-sample data."""
     t = tree.clone()
     t.seen, t.candidates, t.heap, t.counter = set(), [], [], 0
@@ -173,8 +173,8 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
         As :func:`~lsindy_cas.identify.bnb.branch_and_bound`'s (``method="bnb"``, ``proven``,
         ``gap``, ``nodes`` over the driver and all tasks, ``seconds``), plus ``tasks``.
     """
-    from .distributed import _distributed
-    d = _distributed()
+    from .distributed import dask_distributed
+    d = dask_distributed()
     m, p = A.shape
     forced, k, time_limit, tol = check_inputs(A, b, D, k, forced, time_limit, tol)
     warmup = WARMUP if warmup is None else check_real("warmup", warmup, nonnegative=True)
@@ -186,7 +186,7 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
     if structure is None:
         structure = structure_of(admissible, p)
     # the trees of branch_and_bound(screen="auto"), built the same way
-    s = _Search(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, False)
+    s = BnbSearch(A, b, k, forced, admissible, D, scale_system, tol, n_report, structure, False)
     if screen == "auto":
         trees = [s.start(False)] + [t for t in (s.clone().start("l1") if b is not None else None,
                                                 s.clone().start(True)) if t is not None]
@@ -383,7 +383,7 @@ class _Run:
         pool_S = [x for t in trees for x in t.pool_S] + [P[0] for P in self.pools]
         pool_s = [x for t in trees for x in t.pool_s] + [P[1] for P in self.pools]
         sup, sc = np.vstack(pool_S), np.concatenate(pool_s)
-        keep = np.argsort(sc, kind="stable")[:_POOL]
+        keep = np.argsort(sc, kind="stable")[:RUNNERS_UP]
         sup, sc = sup[keep], sc[keep]
         null_dim = self.null_dim
         coef, nd = coef_on_support(A, b, w.support, scale_system)     # as one process

@@ -49,7 +49,7 @@ import numpy as np
 from . import findings as F
 from .dissipation import floored_chi
 from .fitting import coef_on_support, normalise_columns
-from .diagnostics import NEAR_TIE, _NULL_FACTOR
+from .diagnostics import NEAR_TIE, NEAR_NULL_FACTOR
 from .findings import Finding, code_of
 from .selection import CHI_OK, chi_of
 from .standard_errors import propagated_std
@@ -125,7 +125,7 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
     rel, least = _relative_errors(fit.coef, coef_std)
     if rel is not None:
         checks["largest_relative_std"] = rel
-    if not bal.passive and d.null_dim > 0 and rel is not None and rel < 1 / np.sqrt(_NULL_FACTOR):
+    if not bal.passive and d.null_dim > 0 and rel is not None and rel < 1 / np.sqrt(NEAR_NULL_FACTOR):
         reasons = _without(reasons, F.NULL_SPACE)
     noise = _noise(fit)
     chi = None if noise is None else _chi(bal, noise, fit.support)
@@ -297,7 +297,7 @@ def _passive_null(fit) -> int:
     sol = np.linalg.lstsq(M, rhs, rcond=None)[0]
     score = max(float(np.sum((M @ sol - rhs) ** 2)), 1e-18)
     sv = np.linalg.svd(M, compute_uv=False)
-    return int(np.sum(sv ** 2 <= _NULL_FACTOR * score / (fit.balance.n_rows + len(A_s))))
+    return int(np.sum(sv ** 2 <= NEAR_NULL_FACTOR * score / (fit.balance.n_rows + len(A_s))))
 
 
 def _scale_unresolved(fit, found) -> list:
@@ -321,7 +321,7 @@ def _scale_unresolved(fit, found) -> list:
         sol = np.linalg.lstsq(An, b, rcond=None)[0]
         score = max(float(np.sum((An @ sol - b) ** 2)), 1e-18)
         sv = np.linalg.svd(An, compute_uv=False)
-        out.append(int(np.sum(sv ** 2 <= _NULL_FACTOR * score / len(b))))
+        out.append(int(np.sum(sv ** 2 <= NEAR_NULL_FACTOR * score / len(b))))
     return out
 
 
