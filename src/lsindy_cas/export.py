@@ -91,7 +91,7 @@ def export_c(model, folder, *, dt: float = 0.05, n_substeps: int = 1, name: str 
     from ._io import atomic_write, existing_dir
     from ._validate import check_int, check_real, relative_energy
     from ._version import __version__
-    from .control.ocp import rk4_step
+    from .mechanics.rk4 import rk4_step
 
     dt = check_real("dt", dt, positive=True)
     n_substeps = check_int("n_substeps", n_substeps, low=1)

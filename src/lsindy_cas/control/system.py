@@ -12,7 +12,7 @@ import casadi as ca
 import numpy as np
 
 from .._validate import relative_energy
-from .ocp import rk4_step
+from ..mechanics.rk4 import rk4_step
 
 __all__ = ["ControlledSystem", "MAX_SUBSTEP"]
 

@@ -89,7 +89,7 @@ def step_kick(step, cart_index, pole_index, upright, levels):
 def upright_kick(ode, cart_index, pole_index, upright, dt, n_substeps, force_set):
     """:meth:`SwingUpMPC.kick` before the controller exists (0.0 if the arguments are bad:
     they are checked, with a clear error, when the controller is built)."""
-    from .ocp import rk4_step
+    from ..mechanics.rk4 import rk4_step
     try:
         step = rk4_step(ode, 4, 2, float(dt), int(n_substeps))
         return step_kick(step, cart_index, pole_index, upright, force_set)

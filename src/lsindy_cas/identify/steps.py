@@ -62,7 +62,7 @@ def drift_simulator(ode, n_coords: int, substeps: int = 8):
     """
     import casadi as ca
 
-    from ..control.ocp import rk4_expr
+    from ..mechanics.rk4 import rk4_expr
     n = 2 * n_coords
     x, u, h = ca.MX.sym("x", n), ca.MX.sym("u", n_coords), ca.MX.sym("h")
     step = ca.Function("rk4_interval", [x, u, h], [rk4_expr(ode, x, u, h, substeps)])
