@@ -19,7 +19,17 @@ import numpy as np
 from ..symbolic.coords import Coordinates
 from .rayleigh import COULOMB_EPS, check_velocity_only, friction_forces, smooth_sign
 
-__all__ = ["EulerLagrange", "simulate_ode"]
+__all__ = ["EulerLagrange", "mass_and_force", "simulate_ode"]
+
+
+def mass_and_force(coords: Coordinates, L):
+    """The Euler–Lagrange equations M(q, q̇) q̈ = F of a Lagrangian ``L`` (CasADi SX over
+    ``coords``): M = ∂²L/∂q̇², F = Q + ∂L/∂q − (∂²L/∂q̇∂q) q̇.  The one place they are written;
+    friction is the caller's to subtract from F."""
+    dL_dqd = ca.gradient(L, coords.qd)
+    M = ca.jacobian(dL_dqd, coords.qd)
+    F = coords.Q + ca.gradient(L, coords.q) - ca.mtimes(ca.jacobian(dL_dqd, coords.q), coords.qd)
+    return M, F
 
 
 class EulerLagrange:
@@ -49,10 +59,7 @@ class EulerLagrange:
         if not coulomb_eps > 0:
             raise ValueError(f"coulomb_eps must be positive, got {coulomb_eps}")
         self.coulomb_eps = float(coulomb_eps)
-        L = c.to_casadi(self.lagrangian)
-        dL_dqd = ca.gradient(L, c.qd)
-        self.M_sx = ca.jacobian(dL_dqd, c.qd)
-        self.F_sx = c.Q + ca.gradient(L, c.q) - ca.mtimes(ca.jacobian(dL_dqd, c.q), c.qd)
+        self.M_sx, self.F_sx = mass_and_force(c, c.to_casadi(self.lagrangian))
         if self.rayleigh != 0:
             fr = [c.to_casadi(smooth_sign(f, self.coulomb_eps))
                   for f in friction_forces(c, self.rayleigh)]

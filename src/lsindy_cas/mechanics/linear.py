@@ -78,10 +78,8 @@ class LinearMechanics:
         L = ca.SX(0)
         for j in np.flatnonzero(self.coef):
             L = L + float(self.coef[j]) * theta[int(j)]
-        dL_dqd = ca.gradient(L, c.qd)
-        M = ca.jacobian(dL_dqd, c.qd)
-        F = c.Q + ca.gradient(L, c.q) - ca.mtimes(ca.jacobian(dL_dqd, c.q), c.qd)
-        return M, F
+        from .euler_lagrange import mass_and_force
+        return mass_and_force(c, L)
 
     def mass_matrix(self) -> ca.Function:
         """``M(x)``: (2n,) state -> (n, n) generalized mass matrix ∂²L/∂q̇²."""

@@ -28,6 +28,7 @@ import casadi as ca
 import sympy as sp
 
 from ..symbolic.coords import Coordinates
+from .euler_lagrange import mass_and_force
 
 __all__ = ["ParametricDynamics", "smooth_abs"]
 
@@ -94,11 +95,9 @@ class ParametricDynamics:
         if self.dissipation_terms:
             R_j = ca.vertcat(*[c.to_casadi(smooth_abs(t, self.eps)) for t in self.dissipation_terms])
             R = ca.dot(r, R_j)
-        dL_dqd = ca.gradient(L, c.qd)
-        self.M_sx = ca.jacobian(dL_dqd, c.qd)
+        self.M_sx, F = mass_and_force(c, L)
         self.friction_sx = -ca.gradient(R, c.qd)
-        self.F_sx = (c.Q + ca.gradient(L, c.q) - ca.mtimes(ca.jacobian(dL_dqd, c.q), c.qd)
-                     + self.friction_sx)
+        self.F_sx = F + self.friction_sx
 
     def ode(self) -> ca.Function:
         """``Function('ode', [x, u, p], [xdot])``: x = [q, q̇] (2n), u = Q (n), p (n_params)."""
