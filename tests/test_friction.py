@@ -174,11 +174,27 @@ def test_oscillator_passive_with_scale_record_is_absolute():
 
 
 def test_negative_dissipation_is_refused():
-    """Data that gain energy (anti-damping, R = −0.1 ṡ²): the fit is refused, not printed."""
+    """Data that gain energy (anti-damping, R = −0.1 ṡ²): the fit is refused, not printed; a
+    verdict on the data (UndeterminedError, a ValueError), not a bad argument."""
+    from lsindy_cas.identify.findings import UndeterminedError
     s, runs = _oscillator("-0.1*s_dot**2", t_end=2.0)
     lib = Library(["s"], ["s**2", "s_dot**2"])
-    with pytest.raises(ValueError, match="dissipation is negative|not positive semidefinite"):
+    with pytest.raises(UndeterminedError, match="dissipation is negative|not positive semidefinite"):
         LagrangianSINDy(lib, dissipation=["s_dot**2"]).fit(runs)
+
+
+def test_cli_negative_dissipation_is_a_verdict_exit_3(tmp_path):
+    """The same anti-damped data from the command line: exit 3 (the data do not determine the
+    model), one line on stderr; exit 2 stays for bad input."""
+    _, runs = _oscillator("-0.1*s_dot**2", t_end=2.0)
+    files = [dataclasses.replace(tr, qdd=None).save(tmp_path / f"run{i}.csv")
+             for i, tr in enumerate(runs)]
+    r = _cli("identify", *files, "--coords", "s", "--candidates", "s**2,s_dot**2",
+             "--terms", "2", "--dissipation", "s_dot**2")
+    assert r.returncode == 3, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert "dissipation is negative" in lines[0] or "not positive semidefinite" in lines[0]
 
 
 @pytest.mark.parametrize("terms, needle", [

@@ -26,6 +26,7 @@ import numpy as np
 from ..mechanics.rayleigh import check_velocity_only
 from ..symbolic.library import Library
 from .admissibility import REDUCIBLE_TOL
+from .findings import UndeterminedError
 from .work import increments_preferred
 from .uncertainty import N_BLOCKS, T_CRIT, Jackknife
 
@@ -314,12 +315,14 @@ def check_dissipation(lib: Library, rho, X) -> None:
     power = np.r_[power_columns(lib, X) @ rho, 1e6 * (power_columns(lib, slow) @ rho)]
     top = max(np.max(np.abs(power)), 1e-300)
     if power.min() < -NEG_RTOL * top:
-        raise ValueError("the fitted dissipation is negative (energy created, dissipated power "
-                         f"{power.min():.3g} W at a sample): the data do not support this friction "
-                         "model; check the dissipation terms and the sign of the applied forces")
+        raise UndeterminedError(
+            "the fitted dissipation is negative (energy created, dissipated power "
+            f"{power.min():.3g} W at a sample): the data do not support this friction model; "
+            "check the dissipation terms and the sign of the applied forces")
     step = max(1, len(X) // 400)
     H = np.einsum("sikp,p->sik", lib.d2theta_dqd2(X[::step]), rho)
     eig = np.linalg.eigvalsh(H)
     if eig[:, 0].min() < -1e-9 * max(np.abs(eig).max(), 1e-300):
-        raise ValueError("the fitted viscous friction is not positive semidefinite (∂²R/∂q̇² has a "
-                         "negative eigenvalue): refused, it would create energy")
+        raise UndeterminedError(
+            "the fitted viscous friction is not positive semidefinite (∂²R/∂q̇² has a negative "
+            "eigenvalue): refused, it would create energy")

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from types import MappingProxyType
 
-__all__ = ["Finding", "code_of", "CODES",
+__all__ = ["Finding", "UndeterminedError", "code_of", "CODES",
            # diagnostics: warnings
            "WORK_UNEXPLAINED", "NULL_SPACE", "NEAR_TIE",
            # diagnostics: traps and near-tie reasons
@@ -106,3 +106,11 @@ class Finding(str):
 def code_of(item) -> str | None:
     """The code of a finding; None for a plain string (or anything else)."""
     return item.code if isinstance(item, Finding) else None
+
+
+class UndeterminedError(ValueError):
+    """The data (with this library and these options) do not determine the model: automatic
+    selection found no admissible model for any number of terms, or the fitted friction creates
+    energy.  A :class:`ValueError`, raised after the search, not for unusable arguments;
+    ``lsindy identify`` exits with code 3 on it, as for a fitted model whose status is
+    "undetermined" (the same pure-noise data give either answer depending on the noise draw)."""

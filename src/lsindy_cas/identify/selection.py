@@ -55,17 +55,12 @@ from .fitting import null_vector
 from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
+from .findings import UndeterminedError  # noqa: F401 (importable here)
 
 __all__ = ["Step", "Selection", "UndeterminedError", "select", "cv_error", "chi_of", "fold_ids",
            "IMPROVEMENT"]
 
 
-class UndeterminedError(ValueError):
-    """Automatic selection found no admissible model for any number of terms: the data (with
-    this library) do not determine the energy.  A :class:`ValueError`, raised after the search,
-    not for unusable arguments; ``lsindy identify`` exits with code 3 on it, as for a fitted
-    model whose status is "undetermined" (the same pure-noise data give either answer
-    depending on the noise draw)."""
 
 
 IMPROVEMENT = 2.0
