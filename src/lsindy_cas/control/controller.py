@@ -140,7 +140,7 @@ class Controller:
         self.system = sys_ = ControlledSystem(model, self.bound, rng)
         self.candidates = np.array(list(itertools.product(
             *[i.candidates() for i in self.bound.inputs])), float)
-        self.policy = None
+        self.policy, self._margin_maps = None, {}
         if plugin is not None:                 # the plug-in decides: nothing generic to build
             self.policy = plugin.build(model, task, self)
             self.reset()
@@ -264,7 +264,10 @@ class Controller:
 
     def _margins(self, X):
         X = np.atleast_2d(X)
-        return np.asarray(self.bound.reach[1].map(len(X))(X.T)).ravel()
+        f = self._margin_maps.get(len(X))
+        if f is None:                  # one mapped function per row count, not one per call
+            f = self._margin_maps[len(X)] = self.bound.reach[1].map(len(X))
+        return np.asarray(f(X.T)).ravel()
 
     def _capture(self, X):
         if self.local is not None:

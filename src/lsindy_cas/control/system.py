@@ -76,15 +76,14 @@ class ControlledSystem:
         self._check_kinetic(bound, rng)
 
     def _samples(self, rng, k=64):
-        """Sample states: angles over a turn, other coordinates and all rates in ±1."""
-        X = rng.uniform(-1.0, 1.0, size=(k, self.n))
-        return X
+        """Sample states for the checks: every entry uniform in ±π."""
+        return rng.uniform(-np.pi, np.pi, size=(k, self.n))
 
     def _angles(self, rng, n_coords):
         """Angles: coordinates H depends on and is 2π-periodic in.  Cyclic coordinates: those H
         does not depend on at all (a cart's position, a Furuta arm's angle): shifting them
         changes nothing in the dynamics."""
-        X = self._samples(rng) * np.pi
+        X = self._samples(rng)
         E = self._energy_rows(X)
         scale = 1.0 + np.max(np.abs(E))
         angles, cyclic = np.zeros(self.n, bool), np.zeros(self.n, bool)
@@ -106,7 +105,7 @@ class ControlledSystem:
         return np.asarray(self.energy.map(len(X))(X.T)).ravel()
 
     def _check_kinetic(self, bound, rng):
-        X = self._samples(rng) * np.pi
+        X = self._samples(rng)
         if bound.target is not None:
             X = np.vstack([bound.target, X])
         for x in X:
