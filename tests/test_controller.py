@@ -372,6 +372,62 @@ def test_beam_search_returns_none_when_every_input_leaves_the_limits():
     assert search(np.array([2.2, 1.0])) is None and search.plan is None
 
 
+def _counting(search):
+    """Count the search's expansions (calls of its mapped model map) per call."""
+    calls = []
+    advance = search._advance
+
+    def counted(X, U):
+        calls[-1] += 1
+        return advance(X, U)
+
+    search._advance = counted
+
+    def call(x):
+        calls.append(0)
+        return BeamSearch.__call__(search, x)
+    return call, calls
+
+
+@pytest.mark.parametrize("restart", [False, True])
+def test_budgeted_search_expands_at_most_its_budget_per_call_and_still_arrives(restart):
+    """A search 5 samples deep with a budget of 2 runs over 3 calls; on the exact model the
+    closed loop still arrives at rest at p = 6 in the time-optimal 5 samples when the search
+    goes on from the inputs applied meanwhile (those of its best partial sequence, there
+    being no previous plan); restarting from the measured state at every call still arrives."""
+    step = _double_integrator()
+    capture, cost = _rest_at(6.0)
+    search = BeamSearch(step, [[-1.0], [0.0], [1.0]], depth=12, width=64, cost=cost,
+                        capture=capture, lower=np.array([-np.inf, -np.inf]),
+                        upper=np.array([np.inf, np.inf]), budget=2, restart=restart)
+    call, calls = _counting(search)
+    X = [np.zeros(2)]
+    for _ in range(30):
+        i = call(X[-1])
+        X.append(np.asarray(step(X[-1], search.candidates[i])).ravel())
+        if capture(X[-1][None, :])[0]:
+            break
+    assert capture(X[-1][None, :])[0]
+    assert max(calls) <= 2
+    if not restart:
+        # one search, spread over calls; its plan then kept to the goal without searching
+        assert len(X) - 1 == 5 and search.stats["searches"] == 1
+
+
+def test_budgeted_search_applies_the_previous_plan_while_it_searches():
+    """A plan that no longer captures is replaced by a search spread over calls; meanwhile the
+    inputs applied are the old plan's, and the new plan starts where they leave off."""
+    step = _double_integrator()
+    capture, cost = _rest_at(6.0)
+    search = BeamSearch(step, [[-1.0], [0.0], [1.0]], depth=12, width=64, cost=cost,
+                        capture=capture, lower=np.array([-np.inf, -np.inf]),
+                        upper=np.array([np.inf, np.inf]), budget=1)
+    old = np.array([2, 2, 1, 0, 0, 1, 1])        # +1, +1, 0, −1, −1, 0, 0: ends at p = 4
+    search.plan, search.captured = old, True
+    applied = [search(np.zeros(2)) for _ in range(2)]
+    assert applied == [2, 2] and search._job is not None
+
+
 # ====================================================================== goal bookkeeping
 class StubController:
     """What run_episode and GoalClock use of a controller: task, bound, reset, call, reached
