@@ -6,16 +6,20 @@ module (inside functions too), relative ones resolved to absolute module names, 
 import that a test run happens not to execute.
 """
 import ast
+import io
 import os
 import subprocess
 import sys
+import tokenize
 from pathlib import Path
 
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 PACKAGE = SRC / "lsindy_cas"
-MAX_LINES = 450          # the project's guide says ~400 lines per module; 450 is the hard limit
+# code lines per module (docstrings, comments and blank lines not counted): the largest module
+# today has ~310; past 350 a module has grown a second job (measured with code_lines below)
+MAX_CODE_LINES = 350
 
 # sub-package -> sub-packages of lsindy_cas it must never import
 FORBIDDEN = {
@@ -108,10 +112,35 @@ def test_every_subpackage_but_paper_has_an_import_rule():
     assert subs - set(FORBIDDEN) == {"paper"}, subs
 
 
-def test_modules_are_short():
-    long = {str(p.relative_to(SRC)): n for p in _modules()
-            if (n := len(p.read_text().splitlines())) > MAX_LINES}
-    assert not long, f"modules over {MAX_LINES} lines: {long}"
+def code_lines(path: Path) -> int:
+    """Lines holding code: not blank, not a comment, not part of a docstring."""
+    src = path.read_text()
+    doc = set()
+    for node in ast.walk(ast.parse(src)):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) \
+                and node.body and isinstance(node.body[0], ast.Expr) \
+                and isinstance(node.body[0].value, ast.Constant) \
+                and isinstance(node.body[0].value.value, str):
+            doc.update(range(node.body[0].lineno, node.body[0].end_lineno + 1))
+    skip = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
+            tokenize.ENCODING, tokenize.ENDMARKER}
+    code = set()
+    for tok in tokenize.generate_tokens(io.StringIO(src).readline):
+        if tok.type not in skip:
+            code.update(ln for ln in range(tok.start[0], tok.end[0] + 1) if ln not in doc)
+    return len(code)
+
+
+def test_code_line_counter():
+    here = Path(__file__)
+    assert 0 < code_lines(here) < len(here.read_text().splitlines())
+
+
+def test_modules_are_cohesive():
+    """A soft limit on code lines (documentation is free): past it a module is doing more than
+    one job and should be split by responsibility, not trimmed to fit."""
+    long = {str(p.relative_to(SRC)): n for p in _modules() if (n := code_lines(p)) > MAX_CODE_LINES}
+    assert not long, f"modules over {MAX_CODE_LINES} lines of code: {long}"
 
 
 def _run(code):

@@ -1,4 +1,4 @@
-"""The re-selection on the noise-weighted balance (identify/reweight.py): its time budget and how
+"""The re-selection on the noise-weighted balance (identify/reweight.py): its work budget and how
 its outcome is recorded.  ``select`` is replaced by a stub so that each outcome of the weighted
 search (proven, cut short on the same support, a different support, nothing admissible) is
 produced exactly."""
@@ -12,23 +12,21 @@ from lsindy_cas.identify.search import SearchResult
 from lsindy_cas.identify.selection import Selection
 
 
-def _selection(support, method="bnb", proven=True, seconds=2.0, gap=0.0, nodes=10):
+def _selection(support, method="bnb", proven=True, seconds=2.0, gap=0.0, nodes=10, work=None):
     res = SearchResult(tuple(support), np.zeros(4), 0.1, [], 1, 0)
     res.method, res.proven, res.seconds, res.gap, res.nodes = method, proven, seconds, gap, nodes
+    res.work = float(nodes if work is None else work)
     return Selection(len(support), tuple(support), np.zeros(4), res, [], False, [])
 
 
-@pytest.mark.parametrize("method, seconds, limit, expected", [
-    ("exhaustive", 0.0, None, None),     # exhaustive again: no budget needed
-    ("exhaustive", 0.0, 7.0, 7.0),       # the caller's limit passes through unchanged
-    ("bnb", 2.0, None, reweight.MIN_SECONDS),
-    ("bnb", 30.0, None, 30.0),           # as long as the first search took
-    ("bnb", 30.0, 10.0, 10.0),           # never beyond the caller's limit
-    ("bnb", 2.0, 1.0, 1.0),
+@pytest.mark.parametrize("method, work, expected", [
+    ("exhaustive", 0.0, None),           # exhaustive again: no budget needed
+    ("bnb", 2.0, reweight.MIN_WORK),
+    ("bnb", 3e6, 3e6),                   # as much work as the first search did
 ])
-def test_budget(method, seconds, limit, expected):
-    first = _selection((0, 1), method=method, seconds=seconds).search
-    assert reweight.budget(first, limit) == expected
+def test_budget(method, work, expected):
+    first = _selection((0, 1), method=method, work=work).search
+    assert reweight.budget(first) == expected
 
 
 def _stub(monkeypatch, outcome):
@@ -45,13 +43,16 @@ def _stub(monkeypatch, outcome):
 
 def test_cut_short_on_the_same_support_keeps_the_first_certificate(monkeypatch):
     sel = _selection((0, 2), seconds=12.0)
-    weighted = _selection((0, 2), proven=False, seconds=12.0, gap=3e-3, nodes=777)
+    sel.search.work = 3e5
+    weighted = _selection((0, 2), proven=False, seconds=12.0, gap=3e-3, nodes=777, work=3e5)
     calls = _stub(monkeypatch, weighted)
     out, changed = reweight.reselect(None, [], sel, scale_system=None, admissible=None,
                                      time_limit=60.0)
-    assert calls[0]["time_limit"] == 12.0 and calls[0]["n_terms"] == 2
+    assert calls[0]["time_limit"] == 60.0 and calls[0]["n_terms"] == 2
+    assert calls[0]["work_limit"] == 3e5
     assert changed is False and out is sel and out.search.proven
-    assert out.search.reweighted == {"proven": False, "gap": 3e-3, "nodes": 777, "seconds": 12.0}
+    assert out.search.reweighted == {"proven": False, "gap": 3e-3, "nodes": 777, "seconds": 12.0,
+                                     "work": 3e5}
 
 
 def _balance(rng, support, noise):

@@ -119,26 +119,69 @@ def test_best_subset_on_the_cart_pendulum_is_unchanged_by_the_batched_rules():
 
 def test_scouts_get_the_scout_budget_and_the_chosen_k_the_whole_limit(rng, monkeypatch):
     """Automatic k with no smaller model to extend: each branch and bound of the scan gets at most
-    SCOUT_LIMIT seconds; a chosen k whose search was cut short is searched again with the whole
-    time limit, and that search's certificate is the one reported."""
+    SCOUT_WORK units of work (and the time limit); a chosen k whose search was cut short is
+    searched again with the whole time limit and no work limit, and that search's certificate is
+    the one reported."""
     bal = _synthetic(rng)
     full = select(bal, [])
     monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
-    real, limits = selection.branch_and_bound, []
+    real, calls = selection.branch_and_bound, []
 
-    def spy(*args, time_limit=None, **kw):
-        limits.append(time_limit)
-        res = real(*args, time_limit=time_limit, **kw)
-        if time_limit == selection.SCOUT_LIMIT:      # pretend every scout was cut short
+    def spy(*args, time_limit=None, work_limit=None, **kw):
+        calls.append((time_limit, work_limit))
+        res = real(*args, time_limit=time_limit, work_limit=work_limit, **kw)
+        if work_limit == selection.SCOUT_WORK:       # pretend every scout was cut short
             res.proven, res.gap = False, 1.0
         return res
 
     monkeypatch.setattr(selection, "branch_and_bound", spy)
     auto = select(bal, [], time_limit=30.0)
     assert auto.support == full.support and auto.k == full.k
-    assert limits[0] == selection.SCOUT_LIMIT and limits[-1] == 30.0
+    assert calls[0] == (30.0, selection.SCOUT_WORK) and calls[-1] == (30.0, None)
     assert auto.search.method == "bnb" and auto.search.proven
     assert not auto.steps[0].search.proven or auto.steps[0].k == auto.k
+
+
+def test_a_k_whose_beam_finds_nothing_gets_a_scout_not_a_gap(rng, monkeypatch):
+    """Automatic k: when no one-term extension of the smaller models is admissible, that k is
+    searched by a branch-and-bound scout instead of being skipped — every k up to the chosen one
+    is scored or listed as unscored with its reason."""
+    bal = _synthetic(rng)
+    full = select(bal, [])
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+
+    def no_extension(*args, **kw):
+        raise selection.NoAdmissibleModel("nothing among the extensions", args[3], False)
+
+    monkeypatch.setattr(selection, "_beam", no_extension)
+    auto = select(bal, [])
+    assert auto.support == full.support and auto.k == full.k
+    assert [st.k for st in auto.steps] == list(range(1, auto.steps[-1].k + 1))
+    assert all(st.search.method == "bnb" for st in auto.steps) and not auto.unscored
+
+
+def test_an_undecided_k_is_reported_with_its_reason(rng, monkeypatch):
+    """A k whose scout stops before finding any admissible model is listed as undecided (not
+    proven absent), with the time and work it spent; the scan goes on past it."""
+    bal = _synthetic(rng)
+    full = select(bal, [])
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+    real = selection.branch_and_bound
+
+    def blind_at_two(A, b, k, *args, **kw):
+        if k == 2:
+            raise selection.NoAdmissibleModel("no physically admissible 2-term model found in "
+                                              "0.1 s", 2, False, 0.1, 123.0)
+        return real(A, b, k, *args, **kw)
+
+    monkeypatch.setattr(selection, "branch_and_bound", blind_at_two)
+    monkeypatch.setattr(selection, "_beam", lambda *a, **kw: (_ for _ in ()).throw(
+        selection.NoAdmissibleModel("no extension", a[3], False)))
+    auto = select(bal, [])
+    assert auto.k == full.k and auto.support == full.support and full.k > 2
+    (u,) = auto.unscored
+    assert (u.k, u.proven, u.work) == (2, False, 123.0) and "undecided" in str(u)
+    assert auto.undecided == [u]
 
 
 def test_the_refusal_counts_the_supports_the_structure_rules_out(rng):

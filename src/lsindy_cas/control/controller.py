@@ -26,7 +26,7 @@ import numpy as np
 from .._validate import check_state
 from .compiled import resolve_jit
 from .local import LocalPolicy, equilibrium_input
-from .search import BeamSearch, _maybe_compiled
+from .search import BeamSearch, maybe_compiled
 from .system import ControlledSystem
 from .task import Task
 
@@ -170,7 +170,7 @@ class Controller:
             return
         jit = resolve_jit(self.settings.jit)
         # the search's heuristic evaluates H on every child: compiled like the model's map
-        self._energy_map = _maybe_compiled(
+        self._energy_map = maybe_compiled(
             sys_.energy.map(max(1, self.settings.width * len(self.candidates))), jit)
         self.energy_scale = self._energy_scale(rng)
         nq = sys_.n // 2

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["BeamSearch"]
+__all__ = ["BeamSearch", "maybe_compiled"]
 
 # samples simulated per call when a kept plan is checked (one CasADi call instead of one per
 # sample; plans are tens to hundreds of samples long)
@@ -38,7 +38,7 @@ def _mapped(step, size):
     return ca.Function("step_map", [X, U], [step.map(size)(X, U)], ["X", "U"], ["X_next"])
 
 
-def _maybe_compiled(f, jit):
+def maybe_compiled(f, jit):
     """``f`` compiled to C when ``jit``, called through preallocated buffers
     (:class:`~.fastcall.NumericFunction`: no DM conversions, ~0.1 ms per call)."""
     from .fastcall import NumericFunction
@@ -96,8 +96,8 @@ class BeamSearch:
         self.cost, self.capture = cost, capture
         self.lower, self.upper = lower, upper
         self.size = self.width * self.k
-        self.step = _maybe_compiled(_mapped(step, self.size), jit)
-        self.roll = _maybe_compiled(step.mapaccum("roll", CHUNK), jit)
+        self.step = maybe_compiled(_mapped(step, self.size), jit)
+        self.roll = maybe_compiled(step.mapaccum("roll", CHUNK), jit)
         self.cells = int(cells)
         n = len(self.lower)
         # cell indices run 0..cells: the grid numbered in base cells + 1 when it fits int64

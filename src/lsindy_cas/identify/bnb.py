@@ -48,9 +48,10 @@ from typing import Callable
 
 import numpy as np
 
+from .._validate import check_real
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
-from .bnb_drive import check_inputs, drive, nothing_admissible
+from .bnb_drive import EXAMINE_COST, check_inputs, drive, nothing_admissible
 from .bnb_leaves import SKIP_TOL, pair_positions, passive_bounds, trim_queue
 from .bnb_leaves import suffix_explained as _suffix_explained
 from .screening import Basis, l1_order, screening_order, structure_of
@@ -287,10 +288,19 @@ class BnbSearch:
         self.heap, self.counter = [((0.0, 0, 0.0), 0, _Node((), 0.0, 1.0))], 1
         return self
 
-    def advance(self, until: float) -> str:
-        """Expand until the clock passes ``until``: "done" (tree exhausted), "open" or "full"."""
-        heap, owed = self.heap, False
+    @property
+    def work(self) -> int:
+        """Work done by this tree, in the units of :mod:`~lsindy_cas.identify.bnb_drive`."""
+        return self.nodes + EXAMINE_COST * self.n_examined
+
+    def advance(self, until: float, work_until: float = np.inf) -> str:
+        """Expand until the clock passes ``until`` or the tree's work reaches ``work_until`` (at
+        least one node or queued leaf per call): "done" (tree exhausted), "open" or "full"."""
+        heap, owed, first = self.heap, False, True
         while heap or self.queue:
+            if not first and (self.work >= work_until or time.monotonic() > until):
+                return "open"
+            first = False
             # a queued leaf is examined when no open node's bound is below it (both at round-off
             # count as 0, as in the nodes' keys), and (not best_first) the best one after each node
             # expanded: the incumbent improves while bounds are weak
@@ -327,8 +337,6 @@ class BnbSearch:
                 self.counter += 1
             if len(heap) > _MAX_OPEN:
                 return "full"
-            if time.monotonic() > until:
-                return "open" if heap or self.queue else "done"
         return "done"
 
     def lower(self) -> float:
@@ -343,7 +351,8 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                      scale_system: tuple | None = None, time_limit: float | None = None,
                      tol: float = SCORE_RESOLUTION, n_report: int = 10,
                      progress: Callable | None = None, screen="auto",
-                     structure=None, best_first: bool = False) -> SearchResult:
+                     structure=None, best_first: bool = False,
+                     work_limit: float | None = None) -> SearchResult:
     """Best admissible k-term support of ``A ξ ≈ b`` (or of a null vector) by branch and bound.
 
     Same inputs and result as :func:`lsindy_cas.identify.search.best_subset`, plus a certificate
@@ -355,6 +364,10 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         As for :func:`~lsindy_cas.identify.search.best_subset` (``D`` required when ``b`` is None).
     time_limit : float, optional
         Seconds after which the best admissible support found so far is returned, not proven.
+    work_limit : float, optional
+        The same after this much work (nodes expanded plus ``EXAMINE_COST`` per leaf examined,
+        :mod:`~lsindy_cas.identify.bnb_drive`): a limit that stops at the same point on every
+        machine.
     tol : float
         Prune a subtree whose bound is within ``tol`` of the incumbent (score units, ≥ 0).
     progress : callable ``(n_done, n_total)``, optional
@@ -405,7 +418,8 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         if trees[0] is None:
             raise ValueError("the basis-pursuit order needs driven data (b) and a solvable "
                              "linear programme")
-    lower, proven, seconds, interrupted = drive(trees, time_limit, progress, slices)
+    work_limit = check_real("work_limit", work_limit, positive=True, allow_none=True)
+    lower, proven, seconds, interrupted = drive(trees, time_limit, progress, slices, work_limit)
     # leaves dropped from a full queue were never examined: proven only if none could win
     proven = proven and all(t.lower_dropped >= s.incumbent - tol for t in trees)
     for t in trees[1:]:
@@ -416,7 +430,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     if s.winner is None and interrupted:
         raise KeyboardInterrupt            # nothing to return: let the caller stop
     if s.winner is None:
-        raise nothing_admissible(k, s.candidates, proven, seconds, s.nodes, s.n_leaves)
+        raise nothing_admissible(k, s.candidates, proven, seconds, s.nodes, s.n_leaves, s.work)
     s._trim_pool()
     sup, sc = s.pool_S[0], s.pool_s[0]
     w = s.winner
@@ -431,5 +445,5 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                        sc, sup, s.n_reducible)
     res.method, res.proven, res.interrupted = "bnb", proven, interrupted
     res.gap = max(0.0, w.score - lower)
-    res.nodes, res.seconds = s.nodes, seconds
+    res.nodes, res.seconds, res.work = s.nodes, seconds, s.work
     return res

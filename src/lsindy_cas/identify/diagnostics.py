@@ -135,6 +135,9 @@ class Diagnostics:
         Residual in units of what the estimated noise explains (≈ 1: fits to within the noise;
         nan without a noise estimate).
     k_path : list of (k, held-out error, χ)
+    k_unscored : list of str
+        Automatic k: the k of the scan without a model and why (no admissible model, or
+        undecided: its search stopped first), with the time spent.
     noise : dict
         Estimated noise std per state column (integral form), from the smoother.
     conserved : list of str
@@ -163,6 +166,7 @@ class Diagnostics:
     held_out_fold_median: float = 0.0
     chi: float = float("nan")
     k_path: list = field(default_factory=list)
+    k_unscored: list = field(default_factory=list)
     k_automatic: bool = False
     noise: dict = field(default_factory=dict)
     conserved: list = field(default_factory=list)
@@ -189,6 +193,7 @@ class Diagnostics:
                 "chi": self.chi if np.isfinite(self.chi) else None,
                 "k_path": [{"k": k, "held_out_error": e, "chi": c if np.isfinite(c) else None}
                            for k, e, c in self.k_path],
+                "k_unscored": list(self.k_unscored),
                 "k_automatic": self.k_automatic, "noise": self.noise,
                 "conserved": self.conserved, "traps": self.traps, "warnings": self.warnings,
                 "hold": self.hold, "hold_errors": self.hold_errors, "velocities": self.velocities,
@@ -202,6 +207,8 @@ class Diagnostics:
             path = ", ".join(f"k={k}: {e:.1e}" + (f" (χ {c:.3g})" if np.isfinite(c) else "")
                              for k, e, c in self.k_path)
             lines.append(f"  held-out error by number of terms ({how}): {path}")
+        for u in self.k_unscored:
+            lines.append(f"  no model at {u}")
         lines.append(f"  held-out error of the model: {self.held_out_error:.2e} "
                      "(fraction not explained)")
         if np.isfinite(self.chi):
@@ -345,6 +352,7 @@ def diagnose(fit: FitRecord) -> Diagnostics:
     d.chi = float(step.chi)
     d.k_automatic = bool(sel.automatic)
     d.k_path = [(s.k, float(s.cv), float(s.chi)) for s in sel.steps]
+    d.k_unscored = [str(u) for u in getattr(sel, "unscored", [])]
     d.null_dim = _null_dim(bal, S, fit.search.score)
     d.near_ties = _near_ties(fit)
     if fit.smoothing:

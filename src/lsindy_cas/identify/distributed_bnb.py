@@ -65,7 +65,7 @@ import numpy as np
 from .._validate import check_real
 from . import findings as F
 from .bnb import RUNNERS_UP, SCORE_RESOLUTION, BnbSearch, branch_and_bound, structure_of
-from .bnb_drive import check_inputs, drive, nothing_admissible
+from .bnb_drive import EXAMINE_COST, check_inputs, drive, nothing_admissible
 from .findings import code_of
 from .fitting import coef_on_support
 from .search import Candidate, SearchResult
@@ -149,7 +149,7 @@ def _better(cand, best) -> bool:
 def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None, D=None,
                                  scale_system=None, time_limit=None, tol=SCORE_RESOLUTION,
                                  n_report=10, progress=None, structure=None, screen="auto",
-                                 warmup=None, task_seconds=None) -> SearchResult:
+                                 warmup=None, task_seconds=None, work_limit=None) -> SearchResult:
     """:func:`~lsindy_cas.identify.bnb.branch_and_bound` with the subtrees searched on ``client``.
 
     Parameters
@@ -158,6 +158,9 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
         A client of a running cluster (:func:`lsindy_cas.identify.distributed.connect`).
     A, b, k, forced, admissible, D, scale_system, time_limit, tol, n_report, progress, structure
         As for :func:`~lsindy_cas.identify.bnb.branch_and_bound`.
+    work_limit : float, optional
+        As for :func:`~lsindy_cas.identify.bnb.branch_and_bound`, summed over the driver and the
+        tasks merged so far (tasks out finish their slice: the stopping point is not exact).
     screen : {"auto", True, False, "l1"}
         The trees, as for :func:`~lsindy_cas.identify.bnb.branch_and_bound` ("auto": the library,
         basis-pursuit and screening orders, sharing the incumbent; otherwise that one order).
@@ -177,6 +180,7 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
     d = dask_distributed()
     m, p = A.shape
     forced, k, time_limit, tol = check_inputs(A, b, D, k, forced, time_limit, tol)
+    work_limit = check_real("work_limit", work_limit, positive=True, allow_none=True)
     warmup = WARMUP if warmup is None else check_real("warmup", warmup, nonnegative=True)
     task_seconds = (TASK_SECONDS if task_seconds is None
                     else check_real("task_seconds", task_seconds, positive=True))
@@ -197,7 +201,7 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
                              "linear programme")
     t0 = _clock()
     deadline = np.inf if time_limit is None else t0 + time_limit
-    run = _Run(client, d, trees, tol, deadline, progress, t0)
+    run = _Run(client, d, trees, tol, deadline, progress, t0, work_limit)
     try:
         if warmup > 0:
             run.warm(min(warmup, time_limit or np.inf))
@@ -214,8 +218,9 @@ def branch_and_bound_distributed(client, A, b, k, forced=(), *, admissible=None,
 class _Run:
     """The driver's state of one distributed search."""
 
-    def __init__(self, client, d, trees, tol, deadline, progress, t0):
+    def __init__(self, client, d, trees, tol, deadline, progress, t0, work_limit=None):
         self.client, self.d, self.trees, self.tol = client, d, trees, tol
+        self.work_limit = np.inf if work_limit is None else work_limit
         self.deadline, self.progress, self.t0 = deadline, progress, t0
         self.best, self.null_dim = None, 0
         self.candidates, self.pools = [], []
@@ -239,9 +244,15 @@ class _Run:
         for t in self.trees:
             t.incumbent, t.winner, t.null_dim = self.incumbent, self.best, self.null_dim
 
+    def work(self) -> float:
+        """Work of the driver's trees and the tasks merged (bnb_drive units)."""
+        return (float(self.counts[2] + EXAMINE_COST * self.counts[3])
+                + sum(t.work for t in self.trees))
+
     def stopped(self) -> bool:
-        """A tree exhausted (proven), interrupted, out of time or memory."""
+        """A tree exhausted (proven), interrupted, out of time, work or memory."""
         return (self.interrupted or self.full or (_clock() > self.deadline and not self.grace)
+                or self.work() >= self.work_limit
                 or any(self._exhausted(i) for i in range(len(self.trees))))
 
     def _exhausted(self, i) -> bool:
@@ -250,7 +261,8 @@ class _Run:
 
     def warm(self, seconds):
         """The ordinary search on the driver (bnb_drive.drive: the trees in turn)."""
-        *_, interrupted = drive(self.trees, seconds, self.progress)
+        limit = None if not np.isfinite(self.work_limit) else self.work_limit
+        *_, interrupted = drive(self.trees, seconds, self.progress, work_limit=limit)
         self.interrupted, self.grace = interrupted, False
         self._adopt(self.trees[0].winner, self.trees[0].null_dim)
 
@@ -378,7 +390,7 @@ class _Run:
             raise KeyboardInterrupt
         if w is None:
             raise nothing_admissible(k, s.candidates + self.candidates, proven, seconds, nodes,
-                                     n_leaves)
+                                     n_leaves, self.work())
         lower = self.lower()
         pool_S = [x for t in trees for x in t.pool_S] + [P[0] for P in self.pools]
         pool_s = [x for t in trees for x in t.pool_s] + [P[1] for P in self.pools]
@@ -406,5 +418,5 @@ class _Run:
                            null_dim, sc, sup, n_reducible)
         res.method, res.proven, res.interrupted = "bnb", proven, self.interrupted
         res.gap = max(0.0, w.score - lower)
-        res.nodes, res.seconds, res.tasks = nodes, seconds, self.tasks
+        res.nodes, res.seconds, res.tasks, res.work = nodes, seconds, self.tasks, self.work()
         return res

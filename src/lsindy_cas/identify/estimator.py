@@ -77,10 +77,10 @@ class LagrangianSINDy(FittedModel):
     time_limit : float, optional
         Seconds allowed to each branch-and-bound search (libraries too large to score every
         support); when it runs out the best admissible support found is kept, marked not proven
-        with its gap (``search_``).  With automatic k the scan's searches are scouts of at most
-        ``SCOUT_LIMIT`` (5 s) and the k chosen gets the whole limit
-        (:mod:`lsindy_cas.identify.selection`).  The re-selection on the noise-weighted balance
-        gets at most as long as the first search took (:mod:`lsindy_cas.identify.reweight`).
+        with its gap (``search_``).  The limit applies to every branch and bound: the scouts of
+        automatic k, which also stop after a fixed amount of work (the same on every machine),
+        the k chosen, and the re-selection on the noise-weighted balance
+        (:mod:`lsindy_cas.identify.selection`, :mod:`lsindy_cas.identify.reweight`).
 
     Attributes (after ``fit``)
     --------------------------
@@ -369,6 +369,7 @@ class LagrangianSINDy(FittedModel):
                 support = sel_w.support
             coef = corrected_fit(bal_w, grads, w, state_var, support, scale_system)
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice
+        sel_w.unscored = sel.unscored
         return coef, bal_w, sel_w, adm
 
     def refine(self, trajectories, **options) -> "LagrangianSINDy":

@@ -24,7 +24,7 @@ __all__ = ["Finding", "UndeterminedError", "code_of", "CODES",
            "ALL_ZERO", "PRIOR_ZERO", "COEFFICIENT_ZERO", "NOT_POSITIVE_DEFINITE", "ADMISSIBLE",
            # status: why a fit is undetermined
            "STD_PROPAGATED", "STD_JACKKNIFE", "RESIDUAL_ABOVE_NOISE", "ILL_CONDITIONED",
-           "INADMISSIBLE_RIVAL", "CONSERVED_UNRESOLVED", "SIMULATION_DRIFT"]
+           "INADMISSIBLE_RIVAL", "CONSERVED_UNRESOLVED", "SIMULATION_DRIFT", "K_UNDECIDED"]
 
 # diagnostics.py: warnings
 WORK_UNEXPLAINED = "work_unexplained"      # the best model leaves > half of the work unexplained
@@ -53,6 +53,7 @@ ILL_CONDITIONED = "ill_conditioned"        # rule 6
 INADMISSIBLE_RIVAL = "inadmissible_rival"  # rule 5
 CONSERVED_UNRESOLVED = "conserved_unresolved"  # rule 4, passive
 SIMULATION_DRIFT = "simulation_drift"      # rule 2
+K_UNDECIDED = "k_undecided"                # rule 8: a smaller k's search stopped undecided
 
 CODES = frozenset(v for k, v in globals().items() if k.isupper() and isinstance(v, str))
 

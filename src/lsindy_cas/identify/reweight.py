@@ -9,15 +9,16 @@ harder to prove: weighting shrinks the rows that carry most of the signal, so th
 sits closer to the bounds of the subtrees (measured on the double pendulum, rich protocol, 10 runs,
 σ = 1e-2, 209 terms, k = 6: the first search proved its winner in 4,878 nodes, the weighted one ran
 past 1.1 million nodes and half an hour — and it ignored ``time_limit``).  So the weighted search
-here gets a budget: the caller's ``time_limit`` if smaller, else as long as the first search took
-(at least :data:`MIN_SECONDS`).  The outcome is recorded honestly:
+here gets a budget of work (:mod:`~lsindy_cas.identify.bnb_drive` units, the same stopping point
+on every machine): as much as the first search spent, at least :data:`MIN_WORK` — and, like every
+branch and bound, at most the caller's ``time_limit`` seconds.  The outcome is recorded honestly:
 
 - proven, or cut short with a support that scores better on the weighted balance than the first
   one: the weighted search's own result and certificate (then not proven, with its gap);
 - cut short without beating the first support (the same one, or a worse one: a cut-short search
   need not have reached the first winner yet): the first search's certificate stands for that
   support (it is proven best on the unweighted balance), and the weighted check is attached as
-  ``reweighted`` (``{"proven", "gap", "nodes", "seconds"}``) so the model file and printout can say
+  ``reweighted`` (``{"proven", "gap", "nodes", "seconds", "work"}``) so the model file and printout can say
   that no better support was found on the weighted balance within the budget.
 """
 from __future__ import annotations
@@ -27,20 +28,19 @@ import math
 import numpy as np
 
 from .search import score_supports
-from .selection import select
+from .selection import SCOUT_WORK, select
 
-__all__ = ["reselect", "MIN_SECONDS"]
+__all__ = ["reselect", "MIN_WORK"]
 
-#: the weighted branch and bound runs at least this long (seconds) unless time_limit is smaller
-MIN_SECONDS = 5.0
+#: the weighted branch and bound gets at least this much work: an automatic-k scout's
+MIN_WORK = SCOUT_WORK
 
 
-def budget(first, time_limit):
-    """Seconds allowed to the weighted search (None: no limit, the exhaustive path)."""
+def budget(first):
+    """Work allowed to the weighted search (None: no limit, the exhaustive path)."""
     if getattr(first, "method", "exhaustive") == "exhaustive":
-        return time_limit                      # exhaustive again: fast, the limit does not apply
-    own = max(MIN_SECONDS, float(getattr(first, "seconds", 0.0) or 0.0))
-    return own if time_limit is None else min(float(time_limit), own)
+        return None                            # exhaustive again: fast, no limit applies
+    return max(MIN_WORK, float(getattr(first, "work", 0.0) or 0.0))
 
 
 def reselect(bal_w, forced, sel, *, scale_system, admissible, time_limit=None, progress=None):
@@ -56,8 +56,8 @@ def reselect(bal_w, forced, sel, *, scale_system, admissible, time_limit=None, p
     first = sel.search
     try:
         sel_w = select(bal_w, forced, n_terms=sel.k, scale_system=scale_system,
-                       admissible=admissible, time_limit=budget(first, time_limit),
-                       progress=progress)
+                       admissible=admissible, time_limit=time_limit,
+                       work_limit=budget(first), progress=progress)
     except (ValueError, KeyboardInterrupt):
         return sel, False
     res = sel_w.search
@@ -68,7 +68,8 @@ def reselect(bal_w, forced, sel, *, scale_system, admissible, time_limit=None, p
     # cut short without beating the first support: keep the first certificate (proven on the
     # unweighted balance) and say what the weighted check did
     first.reweighted = {"proven": False, "gap": float(res.gap) if math.isfinite(res.gap) else None,
-                        "nodes": int(res.nodes), "seconds": float(res.seconds)}
+                        "nodes": int(res.nodes), "seconds": float(res.seconds),
+                        "work": float(res.work)}
     return sel, False
 
 

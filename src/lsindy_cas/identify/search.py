@@ -28,7 +28,7 @@ from .fitting import coef_on_support, column_norms, normal_equations, normalise_
 from .subset_tree import tree_scores
 
 __all__ = ["combinations", "Candidate", "SearchResult", "Visit", "best_subset", "visit", "score_all",
-           "score_supports", "DEGENERACY_TOL"]
+           "score_supports", "DEGENERACY_TOL", "NoAdmissibleModel"]
 
 # Pivots of a unit-diagonal Gram matrix are 1 − R² of each column against the previous ones.
 # Exact identities give ~1e-15 (round-off); genuinely distinct smooth terms on 100+ samples give
@@ -82,6 +82,18 @@ def _forward(L: np.ndarray, c: np.ndarray) -> np.ndarray:
     return y
 
 
+class NoAdmissibleModel(ValueError):
+    """A search found no physically admissible model of ``k`` terms.
+
+    ``proven``: every support was ruled out (none exists); otherwise the search stopped first
+    (``seconds``, ``work``: what it spent) and the question is open.
+    """
+
+    def __init__(self, message: str, k: int, proven: bool, seconds: float = 0.0, work: float = 0.0):
+        super().__init__(message)
+        self.k, self.proven, self.seconds, self.work = int(k), bool(proven), float(seconds), work
+
+
 @dataclass
 class Candidate:
     """One scored support, as listed in the diagnostics."""
@@ -126,6 +138,8 @@ class SearchResult:
         Branch and bound: nodes expanded.
     seconds : float
         Branch and bound: time of the search.
+    work : float
+        Branch and bound: work spent (:mod:`~lsindy_cas.identify.bnb_drive` units).
     interrupted : bool
         Branch and bound: stopped by Ctrl-C.
     """
@@ -145,6 +159,7 @@ class SearchResult:
     gap: float = 0.0
     nodes: int = 0
     seconds: float = 0.0
+    work: float = 0.0
     interrupted: bool = False
 
 
@@ -250,9 +265,11 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     if v.winner is None:
         ruled = (f" (and {v.n_ruled:,} more that the rules exclude before any fit)"
                  if v.n_ruled else "")
-        raise ValueError(f"no physically admissible {k}-term model among the {v.n_examined} best "
-                         f"supports{ruled}; try another n_terms, prior or library (reasons: "
-                         + "; ".join(sorted({c.reason for c in v.candidates if c.reason})) + ")")
+        every = v.n_examined + v.n_ruled >= int(np.isfinite(np.where(degenerate, np.inf, scores)).sum())
+        raise NoAdmissibleModel(
+            f"no physically admissible {k}-term model among the {v.n_examined} best "
+            f"supports{ruled}; try another n_terms, prior or library (reasons: "
+            + "; ".join(sorted({c.reason for c in v.candidates if c.reason})) + ")", k, every)
     return v.result(supports, scores, degenerate)
 
 

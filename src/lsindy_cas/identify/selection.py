@@ -15,7 +15,10 @@ k grows from the number of prior terms; a larger k replaces the current choice o
 held-out error by at least a factor ``IMPROVEMENT`` *and* does so in a paired test over the folds
 (one-sided, 5 %).  The factor matters on clean data: there the residual is quadrature error, which a
 spurious extra term can fit consistently in every fold — a real missing term cuts the error by
-orders of magnitude instead.  The scan stops two k past the last improvement.
+orders of magnitude instead.  The scan stops two k past the last k that lowered the held-out
+error significantly at all (the paired test without the factor): a model that leaves most of the
+work unexplained often gains less than the factor per term until its last missing terms arrive
+(Acrobot without priors: 61 %, 44 %, 34 % unexplained at k = 3, 4, 5; exact at k = 8).
 
 When the noise of the data is known (:class:`~lsindy_cas.identify.uncertainty.NoiseModel`, from the
 smoother), two more rules apply, both in units of the noise (χ = RSS / E[noise], ≈ 1 for a model
@@ -32,14 +35,22 @@ on the paper's 1 s runs at σ = 1e-3: cart-pendulum — the 4-term energy has χ
 imitation held-out errors 10× smaller but χ = 2.1–3.3.
 
 Where scoring every support is too much (more than ``EXHAUSTIVE`` supports): when k is given,
-branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given), and so
-in the automatic scan of k when no smaller model is there to extend (a scout of at most
-``SCOUT_LIMIT`` seconds, within ``time_limit`` or, without one, within ``AUTO_TIME_LIMIT`` for the
-whole scan; the k chosen is then searched again with the whole limit for its certificate, and the
-search says whether it was proven); otherwise the candidates
-are the one-term extensions of the best ``BEAM`` supports of the level below (fast, not exact:
-above the true k every near-perfect support is a smaller one in disguise, which an exact search of
-the best *admissible* support would have to rule out one by one).
+branch and bound (:mod:`lsindy_cas.identify.bnb`, exact, ``time_limit`` seconds if given).  In the
+automatic scan the candidates at k are the one-term extensions of the best ``BEAM`` supports of the
+level below (fast, not exact: above the true k every near-perfect support is a smaller one in
+disguise, which an exact search of the best *admissible* support would have to rule out one by
+one); where there is no smaller model to extend, or none of the extensions is admissible, a branch
+and bound *scout* of at most ``SCOUT_WORK`` units of work (:mod:`~lsindy_cas.identify.bnb_drive`:
+the same stopping point on every machine; also at most ``time_limit`` seconds if given) searches
+that k.  Every k of the range is either scored or listed in :attr:`Selection.unscored` with the
+reason and what its search spent — "no admissible model exists" (proven) or "undecided" (the
+scout stopped first, or the scan's ``AUTO_WORK`` is spent).  The k chosen is searched again by
+branch and bound (``time_limit`` seconds, or ``AUTO_WORK`` units without one) for its certificate,
+and the search says whether it was proven.
+
+A k whose model fits the data to the noise (χ ≤ ``CHI_OK``) or, without a noise model, to the
+held-out floor (the relative held-out error below ``EXACT_CV``) ends the scan: more terms cannot
+fit better than exactly.
 """
 from __future__ import annotations
 
@@ -53,12 +64,12 @@ import numpy as np
 from .energy_balance import EnergyBalance
 from .fitting import null_vector
 from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
-from .search import SearchResult, best_subset, score_supports, visit
+from .search import NoAdmissibleModel, SearchResult, best_subset, score_supports, visit
 from .uncertainty import recentre
 from .findings import UndeterminedError  # noqa: F401 (importable here)
 
-__all__ = ["Step", "Selection", "UndeterminedError", "select", "cv_error", "chi_of", "fold_ids",
-           "IMPROVEMENT"]
+__all__ = ["Step", "Selection", "Unscored", "UndeterminedError", "select", "cv_error", "chi_of",
+           "fold_ids", "IMPROVEMENT", "EXACT_CV"]
 
 
 
@@ -72,19 +83,22 @@ EXHAUSTIVE = 1_500_000
 BEAM = 2000
 MAX_VISITS = 2000          # beam: candidates examined for admissibility before giving up
 MAX_EXTRA = 8              # automatic k: at most this many terms beyond the prior terms
-# Automatic k without a time limit: seconds of the whole scan after which a k with no smaller model
-# to extend gets no branch and bound (the elastic pendulum without priors: no admissible model
-# below k = 4 of its 5 terms); one budget for the scan, so a refusal never takes minutes per k.
-AUTO_TIME_LIMIT = 60.0
-# Automatic k: a branch and bound in the scan (no smaller model to extend) runs at most this long —
-# a scout: what the scan compares across k is the best model each k offers, which the search finds
-# early (double pendulum, rich σ = 1e-2: the k = 4 incumbent of a 60 s search was there at 5 s;
-# proving it best needs far more: below k = 6 no bound is above the round-off of a superset fit).
-# The k finally chosen is searched again with the whole time limit for its certificate.
-SCOUT_LIMIT = 5.0
+# Automatic k: work (bnb_drive units) of a branch and bound in the scan — a scout: what the scan
+# compares across k is the best model each k offers, which the search finds early (double pendulum,
+# rich σ = 1e-2: the k = 4 incumbent of a 60 s search was there at 5 s, ~1e5 units at the 16–31 k
+# units/s measured on it; proving it best needs far more: below k = 6 no bound is above the
+# round-off of a superset fit).
+SCOUT_WORK = 100_000
+# Automatic k: work of all the scouts of one scan together, and of the chosen k's certificate
+# without a time limit (~40–75 s at the rates above): a refusal never takes minutes per k.
+AUTO_WORK = 1_200_000
 # Held-out errors below this (a relative residual of 1e-9, the accuracy of a simulation at
 # rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
 _CV_FLOOR = 1e-18
+# A held-out error below this (relative residual 1e-5) is a fit to the quadrature floor of clean
+# data: true energies measured 1e-18 (Acrobot, double pendulum, 2-10 ms samples), the best wrong
+# models of one term more 5e-8 - 8e-6 (Acrobot, 48 runs), so nothing of more terms can do better.
+EXACT_CV = 1e-10
 _T95 = {1: 6.31, 2: 2.92, 3: 2.35, 4: 2.13, 5: 2.02}   # one-sided 5 % t quantiles, by dof
 
 
@@ -115,10 +129,12 @@ class Selection:
     search : SearchResult
         The search at the chosen k (candidates for the diagnostics).
     steps : list of Step
-        Every k tried, in order (one entry when k was given).
+        Every k scored, in order (one entry when k was given).
     automatic : bool
     excluded : list of int
         Library terms left out of the search (see ``exclude``).
+    unscored : list of Unscored
+        Automatic k: every k of the scan without a model, with the reason (module notes).
     """
 
     k: int
@@ -128,6 +144,29 @@ class Selection:
     steps: list
     automatic: bool
     excluded: list
+    unscored: list = field(default_factory=list)
+
+    @property
+    def undecided(self) -> list:
+        """The k below the chosen one whose search stopped before finding a model or proving
+        there is none."""
+        return [u for u in self.unscored if not u.proven and u.k < self.k]
+
+
+@dataclass
+class Unscored:
+    """A k of the automatic scan without a model: ``proven`` if no admissible k-term model
+    exists, otherwise undecided (its search stopped first); ``seconds`` and ``work`` it spent."""
+
+    k: int
+    reason: str
+    proven: bool
+    seconds: float = 0.0
+    work: float = 0.0
+
+    def __str__(self) -> str:
+        what = "no admissible model" if self.proven else "undecided"
+        return f"k = {self.k}: {what} ({self.reason}; {self.seconds:.1f} s)"
 
 
 def fold_ids(bal: EnergyBalance, n_folds: int = 5):
@@ -182,6 +221,14 @@ def _better(new: Step, old: Step) -> bool:
         return False
     if np.isfinite(new.chi) and np.isfinite(old.chi) and not new.chi < old.chi:
         return False
+    return _gain(new, old)
+
+
+def _gain(new: Step, old: Step) -> bool:
+    """Is the held-out error of ``new`` below that of ``old`` in a paired one-sided test over the
+    folds (5 %), by any factor?"""
+    if not new.cv < old.cv:
+        return False
     d = np.log(old.cv_folds) - np.log(new.cv_folds)        # per-fold log improvement
     if len(d) < 2:
         return True
@@ -210,9 +257,10 @@ class _Columns:
 
 
 def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
-              time_limit=None, automatic=False, auto_limit=AUTO_TIME_LIMIT):
+              time_limit=None, automatic=False, work_left=AUTO_WORK, work_limit=None):
     """Best admissible k-support, SearchResult in full indices: exhaustive up to EXHAUSTIVE
-    supports; beyond, the beam from ``prev`` (automatic k) or else branch and bound."""
+    supports; beyond, with ``automatic``, the beam from ``prev`` or else a branch-and-bound scout
+    (module notes), otherwise branch and bound.  Raises NoAdmissibleModel."""
     p = bal.A.shape[1]
     A, D = bal.A[:, cols.keep], bal.D[:, cols.keep]
     f_loc = cols.local(forced)
@@ -221,30 +269,33 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     n_free = len(cols.keep) - len(f_loc)
     beam = comb(n_free, k - len(f_loc)) > EXHAUSTIVE      # too many to score every support
     can_extend = prev is not None and prev.search is not None and prev.search.supports is not None
-    if beam and automatic and not can_extend:
-        if time_limit is None and auto_limit <= 0:
-            raise ValueError(f"{comb(n_free, k - len(f_loc)):,} supports of {k} terms and the "
-                             f"automatic scan's {AUTO_TIME_LIMIT:g} s of branch and bound are "
-                             "spent: give n_terms, prior terms or a time limit")
-        # a scout (SCOUT_LIMIT), reported as not proven if cut short; select() certifies the
-        # chosen k with the whole budget
-        time_limit = min(auto_limit if time_limit is None else time_limit, SCOUT_LIMIT)
     structure = _local_structure(admissible, p, cols)     # what the rules exclude before a fit
     kinetic = _local_kinetic(admissible, p, cols) if bal.b is not None else None
+    res = None
     if beam and automatic and can_extend:
-        res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system, structure=structure,
-                    kinetic=kinetic)
-    elif beam:                                           # fixed k, or no smaller model to extend
+        try:
+            res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system, structure=structure,
+                        kinetic=kinetic)
+        except NoAdmissibleModel:
+            res = None                   # no extension is admissible: a scout searches this k
+    if res is None and beam:
+        if automatic:
+            if work_left <= 0:
+                raise NoAdmissibleModel(f"the scan's {AUTO_WORK:,} units of branch-and-bound work "
+                                        "are spent: give n_terms, prior terms or max_terms", k,
+                                        False)
+            work_limit = min(SCOUT_WORK, work_left)
         from .distributed import current
         client = current()                               # a Dask cluster: subtrees as tasks
         kw = dict(admissible=adm, D=D if bal.passive else None, scale_system=scale_system,
                   time_limit=time_limit, progress=progress, structure=structure)
         if client is None:
-            res = branch_and_bound(A, bal.b, k, f_loc, **kw)
+            res = branch_and_bound(A, bal.b, k, f_loc, work_limit=work_limit, **kw)
         else:
             from .distributed_bnb import branch_and_bound_distributed
-            res = branch_and_bound_distributed(client, A, bal.b, k, f_loc, **kw)
-    else:
+            res = branch_and_bound_distributed(client, A, bal.b, k, f_loc, work_limit=work_limit,
+                                               **kw)
+    elif res is None:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress, structure=structure,
                           kinetic=kinetic)
@@ -294,8 +345,8 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
     v = visit(A, b, S, scores, degenerate, admissible=admissible, scale_system=scale_system,
               max_visits=max_visits, n_report=n_report, structure=structure, kinetic=kinetic)
     if v.winner is None:
-        raise ValueError(f"no physically admissible {k}-term model among the one-term extensions "
-                         "of the best smaller models")
+        raise NoAdmissibleModel(f"no physically admissible {k}-term model among the one-term "
+                                "extensions of the best smaller models", k, False)
     res = v.result(S, scores, degenerate)
     res.method, res.proven = "beam", False      # not every support scored: no certificate
     return res
@@ -303,7 +354,8 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
 
 def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible: Callable | None = None,
            scale_system=None, exclude=(), max_terms: int | None = None, noise=None,
-           progress: Callable | None = None, time_limit: float | None = None) -> Selection:
+           progress: Callable | None = None, time_limit: float | None = None,
+           work_limit: float | None = None) -> Selection:
     """Choose the support (and k when ``n_terms`` is None) of the energy.
 
     Parameters
@@ -326,8 +378,10 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         Expected noise of the rows (driven data): enables the discrepancy cap on k.
     progress : callable ``(n_done, n_total)``, optional
     time_limit : float, optional
-        Seconds allowed to each branch-and-bound search (see :mod:`lsindy_cas.identify.bnb`);
-        with automatic k to the chosen k's, the scan's scouts get at most ``SCOUT_LIMIT``.
+        Seconds allowed to each branch-and-bound search (:mod:`lsindy_cas.identify.bnb`): the
+        search at the given k, or each scout of the automatic scan and the chosen k's certificate.
+    work_limit : float, optional
+        With ``n_terms``: the branch and bound's work limit (:mod:`~lsindy_cas.identify.bnb`).
 
     Returns
     -------
@@ -341,7 +395,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     folds = fold_ids(bal)
     if n_terms is not None:
         res, _ = _search_k(bal, int(n_terms), forced, cols, admissible, scale_system, progress, None,
-                           time_limit)
+                           time_limit, work_limit=work_limit)
         cv, per = cv_error(bal, res.support, folds)
         step = Step(int(n_terms), res.support, res.coef, res.score, cv, per, res,
                     chi=_chi(bal, res, noise))
@@ -350,53 +404,59 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     k_hi = min(len(cols.keep), len(forced) + MAX_EXTRA if max_terms is None else int(max_terms))
     if k_hi < k_lo:
         raise ValueError(f"max_terms = {max_terms} is smaller than the {k_lo} terms every model needs")
-    steps, best, prev, reasons, fits = [], None, None, [], None
-    deadline = time.monotonic() + AUTO_TIME_LIMIT    # one budget for the whole scan, not per k
+    steps, unscored, best, prev, fits, lowest = [], [], None, None, None, None
+    work = 0.0                           # branch-and-bound work of the whole scan (AUTO_WORK)
     for k in range(k_lo, k_hi + 1):
+        t0 = time.monotonic()
         try:
             res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev,
-                                  time_limit, automatic=True,
-                                  auto_limit=deadline - time.monotonic())
-        except ValueError as exc:        # no admissible k-term model: try the next k
-            reasons.append(f"k = {k}: {exc}")
+                                  time_limit, automatic=True, work_left=AUTO_WORK - work)
+        except NoAdmissibleModel as exc:  # no admissible k-term model found: say so, try k + 1
+            work += exc.work
+            unscored.append(Unscored(k, str(exc), exc.proven, time.monotonic() - t0, exc.work))
             prev = None
             continue
+        work += res.work
         cv, per = cv_error(bal, res.support, folds)
         step = Step(k, res.support, res.coef, res.score, cv, per, res, beam, _chi(bal, res, noise))
         steps.append(step)
         prev = step
-        if fits is None and step.chi <= CHI_OK:
+        if fits is None and (step.chi <= CHI_OK or (not np.isfinite(step.chi) and cv <= EXACT_CV)):
             fits = step                  # the discrepancy principle: enough terms for the noise
         if best is None or _better(step, best):
             best = step
-        if res.interrupted:              # Ctrl-C in the branch and bound: no further k
+        if lowest is None or _gain(step, lowest):
+            lowest = step                # the scan goes on while more terms still help at all
+        if res.interrupted or fits is not None:   # Ctrl-C in the branch and bound, or a fit
             break
-        if k - best.k >= 2 or (fits is not None and k > fits.k):
+        if k - max(best.k, lowest.k) >= 2:
             break
     if best is None:
         raise UndeterminedError("the data cannot identify the energy: no physically admissible model "
                          f"with significant terms for any number of terms {k_lo}..{k_hi} — vary "
-                         "the input, add runs or check the library (" + "; ".join(reasons[:3]) + ")")
+                         "the input, add runs or check the library ("
+                         + "; ".join(str(u) for u in unscored[:3]) + ")")
     if fits is not None and fits.k < best.k:
         best = fits
     if best.search is not None and (best.search.method == "beam" or not best.search.proven):
         best = _certify(bal, best, steps, forced, cols, admissible, scale_system, progress, noise,
-                        folds, time_limit if time_limit is not None else deadline - time.monotonic())
-    return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded)
+                        folds, time_limit, AUTO_WORK - work)
+    return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded,
+                     unscored)
 
 
 def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress, noise, folds,
-             time_limit) -> Step:
+             time_limit, work_left) -> Step:
     """The chosen k came from the beam or a scout (no certificate): search it again by branch and
-    bound (``time_limit`` seconds; skipped below one) and keep its answer — the same support, now
-    with a certificate, or a better-scoring admissible one the first search missed; the first
-    search's when it finds none."""
-    if time_limit < 1.0:
-        return step
+    bound (``time_limit`` seconds, or without one what is left of AUTO_WORK) and keep its answer —
+    the same support, now with a certificate, or a better-scoring admissible one the first search
+    missed; the first search's when it finds none."""
+    if time_limit is None and work_left < SCOUT_WORK:
+        return step                      # the scan spent its budget: no certificate
     try:
         res, _ = _search_k(bal, step.k, forced, cols, admissible, scale_system, progress, None,
-                           time_limit)
-    except (ValueError, KeyboardInterrupt):
+                           time_limit, work_limit=None if time_limit is not None else work_left)
+    except (NoAdmissibleModel, KeyboardInterrupt):
         return step
     if res.score > step.score + SCORE_RESOLUTION:
         return step

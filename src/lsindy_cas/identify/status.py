@@ -35,7 +35,11 @@
    integral with the rows' correlations (:func:`~.standard_errors.propagated_std`: the smoothed
    all-windows integral form with measured velocities); elsewhere its jackknife standard error
    exceeds ``REL_STD_BAD`` (the jackknife over stretches treats correlated stretches as
-   independent: measured 0.3–4× the real scatter on the noise sweep's cart cells).
+   independent: measured 0.3–4× the real scatter on the noise sweep's cart cells);
+8. **k undecided** — automatic k: the search of a smaller k stopped before it found an admissible
+   model or proved there is none, and the chosen model does not fit to the noise (χ ≤ ``CHI_OK``)
+   or, without a noise model, to the floor of clean data (``EXACT_CV``): a smaller model might
+   have been chosen.  (A model that fits to the noise is the choice whatever a smaller k holds.)
 
 All tests are dimensionless (ratios, fractions of a range, condition numbers).  The Python API
 never raises for an undetermined fit: the status is data (``model.status_``, ``model.ok_``).
@@ -51,7 +55,7 @@ from .dissipation import floored_chi
 from .fitting import coef_on_support, normalise_columns
 from .diagnostics import NEAR_TIE, NEAR_NULL_FACTOR
 from .findings import Finding, code_of
-from .selection import CHI_OK, chi_of
+from .selection import CHI_OK, EXACT_CV, chi_of
 from .standard_errors import propagated_std
 from .uncertainty import noise_model
 
@@ -195,6 +199,14 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
                 "scale trial does not tell them apart: record a longer or more varied "
                 "actuated scale trial", F.CONSERVED_UNRESOLVED,
                 {"unresolved": int(sum(u > 0 for u in unresolved))}))
+    undecided = getattr(fit.selection, "undecided", [])
+    fits = (np.isfinite(d.chi) and d.chi <= CHI_OK) or d.held_out_error <= EXACT_CV
+    if undecided and not fits:
+        u = undecided[0]
+        reasons.append(Finding(
+            f"the search for a smaller model stopped undecided ({u}): give n_terms / --terms, "
+            "prior terms or a longer time limit", F.K_UNDECIDED,
+            {"k": [v.k for v in undecided], "seconds": [v.seconds for v in undecided]}))
     drift = _simulation_drift(fit, simulate)
     checks["simulation_drift"] = drift
     if drift > SIM_TOL:
