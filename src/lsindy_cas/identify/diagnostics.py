@@ -13,8 +13,8 @@ Known traps, detected from the structure of the data rather than from the fit:
 - **several conserved quantities (passive data)** — E and, e.g., an angular momentum are both
   conserved, so the null space of the passive balance holds both; only the actuated scale trial
   tells them apart.  They are counted among the supports the passive search found (nearly) as
-  conserved as the winner, keeping those whose state gradients are independent of the energy's
-  and of each other at the samples (functions of one conserved quantity are not new ones).
+  conserved as the winner (:mod:`~lsindy_cas.identify.conserved`: identities and, with friction,
+  quantities the dissipation explains are not conserved quantities).
 """
 from __future__ import annotations
 
@@ -25,7 +25,8 @@ import numpy as np
 from . import findings as F
 from .balance import EnergyBalance
 from .findings import Finding
-from .fitting import coef_on_support, normalise_columns, null_vector
+from .conserved import conserved_quantities
+from .fitting import coef_on_support, normalise_columns
 
 __all__ = ["CONTENDER", "Diagnostics", "ConstantForceTrap", "FitRecord", "constant_force_trap", "diagnose",
            "conserved_quantities", "NEAR_TIE"]
@@ -288,57 +289,6 @@ def _near_ties(fit: FitRecord, n: int = 5) -> list:
         out.append(([lib.names[j] for j in c.support], float(max(c.score, _NUMERICAL_ZERO) / base),
                     bool(ok), why))
     return out
-
-
-def conserved_quantities(library, bal: EnergyBalance, candidates, energy_coef, floor: float):
-    """Conserved quantities besides the energy among the passive search's near-null supports.
-
-    Parameters
-    ----------
-    library : Library
-    bal : EnergyBalance
-        The passive balance.
-    candidates : list of Candidate
-        Supports visited by the search (with their passive scores).
-    energy_coef : array (p,)
-        The identified energy.
-    floor : float
-        Candidates scoring at most this are conserved on the data.
-
-    Returns
-    -------
-    list of (support, eta)
-        Quantities Θη functionally independent of the energy and of each other: at the samples
-        their state gradients are not linearly dependent on those already found.
-    """
-    grads = bal.D.reshape(len(bal.X), bal.X.shape[1], -1)
-    basis = [_gradient_field(grads, np.flatnonzero(energy_coef), energy_coef[energy_coef != 0])]
-    found = []
-    for c in sorted(candidates, key=lambda c: c.score):
-        if c.score > floor:
-            break
-        S = list(c.support)
-        eta = null_vector(bal.A[:, S])
-        g = _gradient_field(grads, S, eta)
-        if _independent(basis + [g]):
-            basis.append(g)
-            found.append((tuple(S), eta))
-    return found
-
-
-def _gradient_field(grads, S, eta) -> np.ndarray:
-    """∇I at every sample: (N, 2n)."""
-    return np.einsum("nkj,j->nk", grads[:, :, list(S)], np.asarray(eta, float))
-
-
-def _independent(fields) -> bool:
-    """Are the gradient fields linearly independent at (most) samples?  (N, 2n) each."""
-    F = np.stack(fields, axis=2)                                   # (N, 2n, r)
-    F = F / np.maximum(np.linalg.norm(F, axis=1, keepdims=True), 1e-300)
-    if F.shape[2] > F.shape[1]:
-        return False
-    sv = np.linalg.svd(F, compute_uv=False)                        # (N, r)
-    return bool(np.median(sv[:, -1]) > 1e-3)
 
 
 def diagnose(fit: FitRecord) -> Diagnostics:
