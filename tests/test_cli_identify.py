@@ -110,7 +110,7 @@ def test_cli_bad_files(tmp_path, capsys, case, header, rows, needle):
 
 def test_trajectory_roundtrip_csv_npz(tmp_path):
     tr = systems.double_pendulum().simulate(t_end=0.2, u=1.0)
-    for ext in ("csv", "npz"):
+    for ext in ("csv", "npz"):      # exact: npz is binary, the CSV is written with %.17g
         back = Trajectory.load(tr.save(tmp_path / f"d.{ext}"), ["theta1", "theta2"])
         np.testing.assert_array_equal(back.X, tr.X)
         np.testing.assert_array_equal(back.Q, tr.Q)

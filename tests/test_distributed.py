@@ -18,15 +18,18 @@ def _spherical(passive):
 @pytest.mark.parametrize("passive", [False, True], ids=["driven", "passive"])
 def test_two_worker_cluster_gives_the_single_process_answer(client, passive):
     """Full C(125, 3) search (no priors; passive: with the two pendulum priors): identical supports
-    in identical order with bit-identical scores, the same winner, coefficients to 1e-12."""
+    in identical order, the same scores (to round-off), the same winner, coefficients to 1e-12."""
     s, lib, trajs, scale = _spherical(passive)
     kw = dict(n_terms=3) if not passive else dict(n_terms=3, prior=["theta_dot**2", "cos(theta)"])
     one = LagrangianSINDy(lib, **kw).fit(trajs, scale)
     many = LagrangianSINDy(lib, **kw).fit(trajs, scale, client=client)
     assert many.support_ == one.support_
     assert set(one.support_) == set(np.flatnonzero(lib.coefficients(s.hamiltonian)))
-    np.testing.assert_array_equal(many.search_.supports, one.search_.supports)
-    np.testing.assert_array_equal(many.search_.scores, one.search_.scores)
+    np.testing.assert_array_equal(many.search_.supports, one.search_.supports)   # index sets
+    # the same fits in other processes (other chunking, memory alignment, BLAS threads): scores
+    # lie in [0, 1] (relative residual or normalised λ_min); ill-conditioned supports can
+    # amplify ulp-level differences by cond(G), so 1e-9 absolute, far below any real mismatch
+    np.testing.assert_allclose(many.search_.scores, one.search_.scores, rtol=0, atol=1e-9)
     np.testing.assert_allclose(many.coef_, one.coef_, rtol=0, atol=1e-12)
 
 

@@ -29,6 +29,7 @@ def test_exhaustive_and_beam_fit_a_passive_support_alike(rng):
     beam = selection._beam(A, None, D, 4, prev, selection._Columns(6, []), None, scale)
     assert full.support == beam.support == (0, 1, 2, 3)
     assert full.null_dim == beam.null_dim == 2
+    # exact by construction: both refit the winner with coef_on_support on the same A and support
     np.testing.assert_array_equal(full.coef, beam.coef)
     # the scale record picks the right member of the 2-dimensional family
     np.testing.assert_allclose(full.coef, truth, rtol=1e-9, atol=1e-12 * np.abs(truth).max())

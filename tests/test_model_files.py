@@ -29,6 +29,7 @@ def test_round_trip_keeps_everything(fitted, tmp_path, rng):
     X = rng.uniform(-2, 2, size=(20, 4))
     U = rng.uniform(-5, 5, size=(20, 2))
     f, g = fitted.ode(), loaded.ode()
+    # exact: the same coefficients (above) and terms build the same expression graph
     np.testing.assert_array_equal(np.asarray(f.map(20)(X.T, U.T)), np.asarray(g.map(20)(X.T, U.T)))
 
 
