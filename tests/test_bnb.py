@@ -102,15 +102,21 @@ def test_screening_puts_the_stepwise_terms_first(rng):
 
 
 def test_time_limit_returns_best_so_far_not_proven(rng, monkeypatch):
-    """A clock that jumps past the limit after 12 nodes: the result is marked not proven."""
+    """A clock that jumps past the limit after 12 nodes: the result is marked not proven.  The
+    clock is the search's own (bnb and bnb_drive), not time.monotonic itself, so no other thread
+    of the test process (a Dask client's event loop) can advance it."""
+    import types
     import lsindy_cas.identify.bnb as bnb
+    import lsindy_cas.identify.bnb_drive as bnb_drive
     calls = {"n": 0}
 
     def clock():
         calls["n"] += 1
         return 0.0 if calls["n"] < 14 else 100.0
 
-    monkeypatch.setattr(bnb.time, "monotonic", clock)
+    fake_time = types.SimpleNamespace(monotonic=clock)
+    monkeypatch.setattr(bnb, "time", fake_time)
+    monkeypatch.setattr(bnb_drive, "time", fake_time)
     A = rng.normal(size=(40, 14))
     b = rng.normal(size=40)
     res = branch_and_bound(A, b, 4, time_limit=5.0)      # 4 terms: more than 14 nodes
@@ -118,6 +124,26 @@ def test_time_limit_returns_best_so_far_not_proven(rng, monkeypatch):
     assert res.gap >= 0 and res.nodes >= 1
     ex = best_subset(A, b, 4)
     assert res.score >= ex.score - 1e-12       # never better than the optimum
+
+
+def test_work_limit_stops_at_the_same_point_every_time(rng):
+    """The clock-free limit: a search stopped after 100 units of work is not proven, never
+    better than the optimum, and stops where it stopped before (same nodes, support and score,
+    whatever the machine's speed); a limit it never reaches changes nothing."""
+    A = rng.normal(size=(60, 24))
+    b = rng.normal(size=60)                         # pure noise: the proof takes many nodes
+    full = branch_and_bound(A, b, 4)
+    assert full.proven and full.work > 200
+    cut = [branch_and_bound(A, b, 4, work_limit=100) for _ in range(2)]
+    for res in cut:
+        assert not res.proven and not res.interrupted and res.gap >= 0
+        assert 100 <= res.work < full.work
+        assert res.score >= full.score - 1e-12      # never better than the optimum
+    # the same computation twice in one process: equal, bit for bit
+    assert (cut[0].nodes, cut[0].support, cut[0].score) == (cut[1].nodes, cut[1].support,
+                                                              cut[1].score)
+    same = branch_and_bound(A, b, 4, work_limit=1e9)
+    assert same.proven and (same.support, same.nodes) == (full.support, full.nodes)
 
 
 def test_keyboard_interrupt_returns_best_so_far(rng, monkeypatch):

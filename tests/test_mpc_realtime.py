@@ -157,12 +157,17 @@ def test_a_diverged_plan_is_not_handed_to_fatrop_the_step_starts_over(model):
 
 
 def test_watchdog_returns_raises_and_abandons_a_call_past_its_limit():
-    dog = Watchdog(0.2)
+    # calls that return get a limit they never reach even on a loaded machine (30 s; a call
+    # waiting 0.2 s for its thread to be scheduled would be abandoned); the one that blocks
+    # until released is abandoned whatever the limit, so it gets a short one
+    dog = Watchdog(30.0)
     assert dog.call(lambda a, b: a + b, a=1, b=2) == (True, 3)
     with pytest.raises(KeyError):
         dog.call(lambda: {}["missing"])
     release = threading.Event()
+    dog.limit = 0.2
     assert dog.call(release.wait, timeout=30) == (False, None)  # blocked: abandoned
+    dog.limit = 30.0
     assert dog.n_abandoned == 1
     assert dog.call(lambda: "new worker") == (True, "new worker")
     release.set()  # the abandoned call returns; its result is dropped

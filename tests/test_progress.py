@@ -20,9 +20,12 @@ class Clock:
 
 
 def test_quick_work_shows_nothing_and_imports_no_tqdm():
+    # "quick" is a clock that does not move (the default delay, 0.5 s, never passes): with the real
+    # clock a process descheduled for 0.5 s on a loaded machine would draw the bar
     code = ("import io, sys; from lsindy_cas.progress import ProgressBar\n"
             "out = io.StringIO()\n"
-            "with ProgressBar('s', stream=out, force=True) as bar: bar(100, 100)\n"
+            "with ProgressBar('s', stream=out, force=True, clock=lambda: 0.0) as bar:"
+            " bar(100, 100)\n"
             "assert out.getvalue() == '', out.getvalue()\n"
             "assert 'tqdm' not in sys.modules\n")
     subprocess.run([sys.executable, "-c", code], check=True)
