@@ -79,6 +79,9 @@ IMPROVEMENT = 2.0
 # benchmark systems at σ = 1e-3 … 1e-1 (the noise estimate is good to ~20 %, and neighbouring rows
 # share smoothed noise).  Models missing a real term measured χ ≳ 40.
 CHI_OK = 2.0
+# A model whose χ exceeds this misses part of the data (the status's CHI_BAD): the scan does not
+# stop on it, and a beam's model this poor is checked by a scout at the same k.
+CHI_MISS = 10.0
 EXHAUSTIVE = 1_500_000
 BEAM = 2000
 MAX_VISITS = 2000          # beam: candidates examined for admissibility before giving up
@@ -417,19 +420,30 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
             prev = None
             continue
         work += res.work
-        cv, per = cv_error(bal, res.support, folds)
-        step = Step(k, res.support, res.coef, res.score, cv, per, res, beam, _chi(bal, res, noise))
+        step = _step(bal, k, res, beam, folds, noise)
+        if res.method == "beam" and not _fair(step):
+            # the beam only extends the best smaller models: a poor fit may be its blind spot
+            try:
+                scout, _ = _search_k(bal, k, forced, cols, admissible, scale_system, progress,
+                                     None, time_limit, automatic=True,
+                                     work_left=AUTO_WORK - work)
+                work += scout.work
+                if scout.score < res.score - SCORE_RESOLUTION:
+                    step = _step(bal, k, scout, True, folds, noise)
+            except NoAdmissibleModel as exc:
+                work += exc.work
         steps.append(step)
         prev = step
-        if fits is None and (step.chi <= CHI_OK or (not np.isfinite(step.chi) and cv <= EXACT_CV)):
+        if fits is None and (step.chi <= CHI_OK or (not np.isfinite(step.chi)
+                                                    and step.cv <= EXACT_CV)):
             fits = step                  # the discrepancy principle: enough terms for the noise
         if best is None or _better(step, best):
             best = step
         if lowest is None or _gain(step, lowest):
             lowest = step                # the scan goes on while more terms still help at all
-        if res.interrupted or fits is not None:   # Ctrl-C in the branch and bound, or a fit
+        if step.search.interrupted or fits is not None:   # Ctrl-C, or a fit
             break
-        if k - max(best.k, lowest.k) >= 2:
+        if k - max(best.k, lowest.k) >= 2 and _fair(best):
             break
     if best is None:
         raise UndeterminedError("the data cannot identify the energy: no physically admissible model "
@@ -464,6 +478,17 @@ def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress,
     new = Step(step.k, res.support, res.coef, res.score, cv, per, res, True, _chi(bal, res, noise))
     steps[steps.index(step)] = new
     return new
+
+
+def _step(bal, k, res, beam, folds, noise) -> Step:
+    cv, per = cv_error(bal, res.support, folds)
+    return Step(k, res.support, res.coef, res.score, cv, per, res, beam, _chi(bal, res, noise))
+
+
+def _fair(step: Step) -> bool:
+    """Does the step's model explain the data up to a missing detail (χ ≤ CHI_MISS)?  Without a
+    noise model there is no scale to judge it by, and it counts as fair."""
+    return not step.chi > CHI_MISS
 
 
 def _chi(bal, res, noise) -> float:
