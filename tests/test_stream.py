@@ -97,15 +97,15 @@ def test_dissipation_refuses_compressed(spherical):
         dissipation_columns(dissipation_library(lib.coords, ["theta_dot**2"]), runs, comp)
 
 
-def test_drift_simulator_matches_the_adaptive_integrator():
+def test_held_input_simulator_matches_the_adaptive_integrator():
     """The status check's RK4 (8 steps per 10 ms sample) against DOP853 at rtol 1e-11 on the
     double pendulum under a held, changing force: 20 samples, agreement far below the check's
     5 % tolerance (RK4's error at h = 1.25 ms is ~1e-10 here; 1e-7 leaves margin)."""
-    from lsindy_cas.identify.steps import drift_simulator
+    from lsindy_cas.mechanics.rk4 import held_input_simulator
     from lsindy_cas.mechanics.euler_lagrange import simulate_ode
     s = systems.double_pendulum()
     t = np.arange(21) * 0.01
     u = lambda tt, x: [np.sin(5 * tt), 0.0]      # noqa: E731
-    X_rk4 = drift_simulator(s.ode(), 2)(np.array(s.x0, float), t, u)
+    X_rk4 = held_input_simulator(s.ode(), 2)(np.array(s.x0, float), t, u)
     X_ref = simulate_ode(s.ode(), s.x0, t, u, 2)[0]
     np.testing.assert_allclose(X_rk4, X_ref, atol=1e-7)

@@ -18,7 +18,7 @@ import numpy as np
 
 from .._io import atomic_write
 
-__all__ = ["Trajectory", "load_trajectories"]
+__all__ = ["Trajectory", "load_trajectories", "as_trajectories"]
 
 MIN_SAMPLES = 5
 
@@ -280,3 +280,20 @@ def load_trajectories(paths, coords=None) -> list:
     if not paths:
         raise ValueError("no trajectory files given")
     return [Trajectory.load(p, coords) for p in paths]
+
+
+def as_trajectories(trajectories, coords, what="trajectories") -> list:
+    """``trajectories`` (one Trajectory or an iterable of them) as a list, each reordered to
+    ``coords``; TypeError/ValueError naming ``what`` otherwise."""
+    if isinstance(trajectories, Trajectory):
+        trajectories = [trajectories]
+    try:
+        trajectories = list(trajectories)
+    except TypeError:
+        raise TypeError(f"{what} must be a Trajectory or a list of them") from None
+    if not trajectories:
+        raise ValueError(f"{what} is empty")
+    for tr in trajectories:
+        if not isinstance(tr, Trajectory):
+            raise TypeError(f"{what} must contain Trajectory objects, got {type(tr).__name__}")
+    return [tr.reorder(coords) for tr in trajectories]

@@ -21,7 +21,9 @@ from .status import assess
 from .standard_errors import coefficient_errors
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import energy_variance, noise_model, row_gradients, sample_weights
-from .steps import check_trajectories, corrected_fit, drift_simulator, run_variance  # noqa
+from ..data.trajectory import as_trajectories
+from ..mechanics.rk4 import held_input_simulator
+from .uncertainty import corrected_fit, run_variance
 
 __all__ = ["LagrangianSINDy"]
 
@@ -217,7 +219,7 @@ class LagrangianSINDy(FittedModel):
         self._validate()
         self._diss_active = None if self._diss_lib is None else list(range(len(self._diss_lib)))
         coords = self.library.coords.names
-        runs = check_trajectories(trajectories, coords)
+        runs = as_trajectories(trajectories, coords)
         holds = self._holds(runs)
         if len(holds) == 1:
             return self._fit(runs, scale_trajectories, passive, progress, holds[0])._assess()
@@ -247,7 +249,7 @@ class LagrangianSINDy(FittedModel):
         """The one verdict on the fit (:func:`.status.assess`): ``status_``, ``status_reasons_``,
         ``ok_``, also in ``diagnostics_``.  Never raises: an undetermined fit is data."""
         d = self.diagnostics_
-        simulate = (drift_simulator(self.ode(), len(self.coords_)) if not self.has_friction_ else
+        simulate = (held_input_simulator(self.ode(), len(self.coords_)) if not self.has_friction_ else
                     lambda x0, t, u: simulate_ode(self.ode(), x0, t, u, len(self.coords_),  # noqa
                                                   rtol=1e-9, atol=1e-10)[0])
         d.status, d.status_reasons, d.checks = assess(self._record, d, simulate, self.coef_std_)
@@ -279,9 +281,9 @@ class LagrangianSINDy(FittedModel):
         lib = self.library
         coords = lib.coords.names
         # 1. inputs: trajectories in the library's coordinate order
-        trajectories = check_trajectories(trajectories, coords)
+        trajectories = as_trajectories(trajectories, coords)
         scale_list = (None if scale_trajectories is None else
-                      check_trajectories(scale_trajectories, coords, "scale_trajectories"))
+                      as_trajectories(scale_trajectories, coords, "scale_trajectories"))
         # 2. states: smoothed (integral form) with their noise variance
         states, state_var, smoothing = (self._prepare(trajectories) if prepared is None
                                          else prepared)

@@ -344,10 +344,10 @@ def refine_model(model, trajectories, interval: float = 0.25, steps: int = 2,
     -------
     model
     """
-    from .steps import check_trajectories
+    from ..data.trajectory import as_trajectories
     model._check_fitted()
     lib = model.library
-    runs = check_trajectories(trajectories, lib.coords.names)
+    runs = as_trajectories(trajectories, lib.coords.names)
     check_uniform(runs)
     S = [int(j) for j in np.flatnonzero(model.coef_)]
     degrees = [lib.velocity_degree(j) for j in S]

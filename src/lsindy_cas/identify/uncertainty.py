@@ -26,7 +26,7 @@ from .energy_balance import EnergyBalance
 
 __all__ = ["NoiseModel", "noise_model", "row_gradients", "energy_variance", "sample_weights",
            "noise_gram", "corrected_coef", "corrected_null", "scaled_null", "Jackknife", "jackknife_t", "block_ids",
-           "recentre", "T_CRIT"]
+           "recentre", "T_CRIT", "corrected_fit", "run_variance"]
 
 # Two-sided 1 % critical value of Student's t with 9 degrees of freedom (10 jackknife blocks).
 T_CRIT = 3.25
@@ -342,3 +342,23 @@ def recentre(bal: EnergyBalance, keep: np.ndarray, A: np.ndarray, b=None):
         if bu is not None:
             bu[m] -= wk @ bu[m]
     return Au * sw[:, None], (None if bu is None else bu * sw)
+
+
+def corrected_fit(bal, grads, w, state_var, support, scale_system) -> np.ndarray:
+    """Coefficients (p,) on ``support`` with the regressor-noise Gram removed."""
+    S = list(support)
+    N = noise_gram(grads, state_var, S, w)
+    coef = np.zeros(bal.A.shape[1])
+    if bal.b is not None:
+        coef[S] = corrected_coef(bal.A, bal.b, S, N)
+        return coef
+    coef[S] = corrected_null(bal.A, S, N, scale_system)
+    return coef
+
+
+def run_variance(smoothed, smoothing: str):
+    """Per run, the noise variance left in each state column (2n,) of the balance's states (None
+    without smoothing, i.e. the derivative form)."""
+    if smoothed is None:
+        return None
+    return [(s.error ** 2).mean(axis=0) if smoothing == "auto" else s.noise ** 2 for s in smoothed]
