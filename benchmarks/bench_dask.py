@@ -52,7 +52,8 @@ def main(argv=None):
 
     from lsindy_cas import Library, systems
     from lsindy_cas.identify import balance
-    from lsindy_cas.identify.distributed import connect, using
+    from lsindy_cas.identify.backend import DaskBackend
+    from lsindy_cas.identify.distributed import connect
     from lsindy_cas.identify.search import score_all
 
     s = systems.spherical_pendulum()
@@ -69,10 +70,9 @@ def main(argv=None):
                 t0 = time.perf_counter()
                 a = score_all(bal.A, bal.b, k)
                 local.append(time.perf_counter() - t0)
-                with using(client):
-                    t0 = time.perf_counter()
-                    b = score_all(bal.A, bal.b, k)
-                    dist.append(time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                b = DaskBackend(client).score_all(bal.A, bal.b, k)
+                dist.append(time.perf_counter() - t0)
             same = all(np.array_equal(x, y) for x, y in zip(a, b))
             rows.append({"k": k, "supports": int(len(a[1])), "one_process": _median_spread(local),
                          "dask": _median_spread(dist), "speedup": float(np.median(local) / np.median(dist)),

@@ -217,14 +217,8 @@ def _cycles(graph):
     return set(out)
 
 
-# The one cycle left: the exhaustive search asks distributed for an ambient Dask client (to be
-# replaced by a search backend passed in explicitly).  Listed so that no other cycle can appear
-# and so that this entry must go when the cycle does.
-KNOWN_CYCLES = {frozenset({"lsindy_cas.identify.search", "lsindy_cas.identify.distributed"})}
-
-
-def test_no_import_cycles_but_the_known_one():
-    assert _cycles(_package_graph()) == KNOWN_CYCLES
+def test_no_import_cycles():
+    assert _cycles(_package_graph()) == set()
 
 
 def test_the_cycle_finder_finds_a_planted_cycle():

@@ -9,10 +9,17 @@ their order are those of the single-process search and their scores agree to rou
 :func:`subtree_scores`), and the best-first visit that follows runs on the driver unchanged.  Passive data (scored
 by the smallest eigenvalue per support) are split into chunks of supports the same way.
 
-Use it with ``LagrangianSINDy(..., client=...)`` or ``lsindy identify --scheduler ADDRESS|local``;
-in code, :func:`using` makes a client the current one for the searches inside the block.  Where the
-library is too large to score every support, the branch and bound runs on the same client
-(:mod:`lsindy_cas.identify.distributed_bnb`: open nodes as tasks, the incumbent shared).
+Use it with ``LagrangianSINDy(...).fit(..., client=...)`` or ``lsindy identify --scheduler
+ADDRESS|local``; in code, :class:`~lsindy_cas.identify.backend.DaskBackend` is the search
+*backend* handed to
+:func:`~lsindy_cas.identify.selection.select` (``backend=``), explicitly — there is no ambient
+client.  Where the library is too large to score every support, the branch and bound runs on the
+same client (:mod:`lsindy_cas.identify.distributed_bnb`: open nodes as tasks, the incumbent shared).
+
+A backend is any object with the two searches of the in-process one:
+``score_all(A, b, k, forced, D, progress)`` (as :func:`lsindy_cas.identify.search.score_all`) and
+``branch_and_bound(A, b, k, forced, **options)`` (as :func:`lsindy_cas.identify.bnb.branch_and_bound`);
+``backend=None`` is in process.
 
 Scaling: the Gram matrix is p² floats (209 terms: 350 kB) whatever the number of samples, so a task
 costs its share of the supports and nothing per sample; results travel back as (n, k) int
@@ -22,15 +29,14 @@ once each task runs well above the per-task overhead (measured in ``benchmarks/b
 """
 from __future__ import annotations
 
-import contextvars
-from contextlib import contextmanager
 from math import comb
 
 import numpy as np
 
-__all__ = ["connect", "using", "current", "score_all_distributed"]
+from .subset_tree import subtree_scores, subtree_supports
 
-_CLIENT = contextvars.ContextVar("lsindy_dask_client", default=None)
+__all__ = ["connect", "score_all_distributed"]
+
 TASKS_PER_WORKER = 4          # subtree groups per worker: enough to balance, few to keep overhead low
 
 
@@ -72,54 +78,6 @@ def connect(scheduler: str, n_workers: int | None = None, timeout: float = 5.0):
                          f"({type(exc).__name__})") from None
 
 
-@contextmanager
-def using(client):
-    """Make ``client`` the one the support searches inside the block run on (None: in process)."""
-    token = _CLIENT.set(client)
-    try:
-        yield client
-    finally:
-        _CLIENT.reset(token)
-
-
-def current():
-    """The client set by :func:`using`, or None."""
-    return _CLIENT.get()
-
-
-def subtree_scores(G, c, bb, forced, free, k, positions):
-    """Scores and smallest pivots of the subtrees ``positions`` (supports whose smallest free column
-    is ``free[i]``), concatenated in order: (scores (n,), pivots (n,)).
-
-    The workers score through this function, subtree by subtree, so their numbers do not depend on
-    how the subtrees are grouped into tasks; against the in-process search
-    (:func:`lsindy_cas.identify.search.score_all`) the supports, their order and the degeneracy
-    flags are identical and the scores agree to round-off (bit for bit at k = 3; at k = 4 without
-    prior terms, 894,150 of 9.7 M differ in the last bits).  The supports themselves are not returned: they are the
-    lexicographic enumeration, rebuilt by the caller (:func:`subtree_supports`).
-    """
-    from .subset_tree import tree_scores
-    rest = k - len(forced) - 1                     # columns still to choose after free[i]
-    out = [tree_scores(G, c, bb, list(forced) + [int(free[i])], free[i + 1:], k)[1:]
-           for i in positions if len(free) - i - 1 >= rest]
-    if not out:
-        return np.zeros(0), np.zeros(0)
-    return tuple(np.concatenate(parts) for parts in zip(*out))
-
-
-def subtree_supports(forced, free, k) -> np.ndarray:
-    """Every support ``forced`` ∪ (k − |forced|)-subset of ``free``, sorted rows, in the
-    lexicographic order of :func:`subtree_scores` (n, k)."""
-    from .search import combinations
-    forced = np.asarray(sorted(forced), dtype=np.int64)
-    free = np.asarray(free, dtype=np.int64)
-    combos = combinations(len(free), k - len(forced))
-    supports = np.hstack([np.broadcast_to(forced, (len(combos), len(forced))), free[combos]])
-    if len(forced):
-        supports.sort(axis=1)
-    return supports
-
-
 def _groups(sizes: np.ndarray, n_groups: int) -> list:
     """Consecutive runs of subtrees with about equal total size (order kept)."""
     total = sizes.sum()
@@ -153,8 +111,7 @@ def score_all_distributed(client, A, b, k, forced=(), D=None, progress=None):
     if b is not None:
         if r == 0:
             from .search import score_all
-            with using(None):
-                return score_all(A, b, k, forced, D, progress)
+            return score_all(A, b, k, forced, D, progress)
         An, _ = normalise_columns(A)
         G, c, bb = An.T @ An, An.T @ b, float(b @ b)
         sizes = np.array([comb(len(free) - i - 1, r - 1) for i in range(len(free))])

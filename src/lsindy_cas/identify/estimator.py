@@ -212,17 +212,18 @@ class LagrangianSINDy(FittedModel):
             Search the supports on this Dask cluster (:mod:`~lsindy_cas.identify.distributed`,
             :mod:`~lsindy_cas.identify.distributed_bnb`); the same answer as in process.
         """
+        backend = None
         if client is not None:
-            from .distributed import using
-            with using(client):
-                return self.fit(trajectories, scale_trajectories, passive, progress)
+            from .backend import DaskBackend
+            backend = DaskBackend(client)
         self._validate()
         self._diss_active = None if self._diss_lib is None else list(range(len(self._diss_lib)))
         coords = self.library.coords.names
         runs = as_trajectories(trajectories, coords)
         holds = self._holds(runs)
         if len(holds) == 1:
-            return self._fit(runs, scale_trajectories, passive, progress, holds[0])._assess()
+            return self._fit(runs, scale_trajectories, passive, progress, holds[0],
+                             backend=backend)._assess()
         # A force that changes at most samples: a smooth force sampled, or a held one changing every
         # sample.  The data decide: the wrong work integral leaves a systematic residual.  The
         # smoothing does not depend on the hold, so both trials share it.
@@ -231,7 +232,7 @@ class LagrangianSINDy(FittedModel):
         for hold in holds:
             trial = copy.copy(self)
             try:
-                trial._fit(runs, scale_trajectories, passive, progress, hold, prepared)
+                trial._fit(runs, scale_trajectories, passive, progress, hold, prepared, backend)
             except ValueError as exc:   # e.g. no admissible model under the wrong work integral
                 failed[hold] = exc
                 continue
@@ -274,7 +275,8 @@ class LagrangianSINDy(FittedModel):
             return ["zoh"]              # constant, or changing at few samples: a held input
         return ["zoh", "smooth"]
 
-    def _fit(self, trajectories, scale_trajectories, passive, progress, hold, prepared=None):
+    def _fit(self, trajectories, scale_trajectories, passive, progress, hold, prepared=None,
+             backend=None):
         """One fit with a given input hold; ``prepared`` = ``_prepare(trajectories)`` if done."""
         self.hold_ = hold
         forced = self._validate()
@@ -300,20 +302,20 @@ class LagrangianSINDy(FittedModel):
                  if state_var is not None and bal.per_sample else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
                      scale_system=scale_system, max_terms=self.max_terms, noise=noise,
-                     progress=progress, time_limit=self.time_limit)
+                     progress=progress, time_limit=self.time_limit, backend=backend)
         coef = sel.coef
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
         if state_var is not None and bal.per_sample:
             coef, bal, sel, admissible = self._refine(states, passive, sel, forced, state_var,
                                                       scale_system, excluded, row_gradients(bal),
-                                                      progress)
+                                                      progress, backend)
         # 7. dissipation: drop the terms the data do not support and fit again without them
         if bal.dissipation is not None:
             keep = prune(bal, coef)
             if len(keep) < len(self._diss_active):
                 self._diss_active = [self._diss_active[j] for j in keep]
                 return self._fit(trajectories, scale_trajectories, passive, progress, hold,
-                                 prepared)
+                                 prepared, backend)
         # 8. relative energy (passive, no scale record): the stated normalisation
         self.energy_scale_, self.normalised_by_ = "absolute", None
         if bal.passive and scale_system is None:
@@ -354,7 +356,7 @@ class LagrangianSINDy(FittedModel):
         return fold_scale(bal, scale, dissipation_columns(lib, states, scale, noise))
 
     def _refine(self, states, passive, sel, forced, state_var, scale_system, excluded, grads,
-                progress=None):
+                progress=None, backend=None):
         """Errors in variables: weight samples by the noise of the fitted energy, re-select on the
         weighted balance (same k), and correct the coefficients for regressor noise."""
         coef, support, sel_w, changed = sel.coef, sel.support, sel, True
@@ -367,7 +369,7 @@ class LagrangianSINDy(FittedModel):
                 adm = Admissibility.for_balance(self.library, bal_w, forced, scale_system, excluded)
                 sel_w, changed = reselect(bal_w, forced, sel_w, scale_system=scale_system,
                                           admissible=adm, time_limit=self.time_limit,
-                                          progress=progress)
+                                          progress=progress, backend=backend)
                 support = sel_w.support
             coef = corrected_fit(bal_w, grads, w, state_var, support, scale_system)
         sel_w.steps, sel_w.automatic = sel.steps, sel.automatic   # the held-out path of the k choice

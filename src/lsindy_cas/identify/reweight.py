@@ -43,7 +43,8 @@ def budget(first):
     return max(MIN_WORK, float(getattr(first, "work", 0.0) or 0.0))
 
 
-def reselect(bal_w, forced, sel, *, scale_system, admissible, time_limit=None, progress=None):
+def reselect(bal_w, forced, sel, *, scale_system, admissible, time_limit=None, progress=None,
+             backend=None):
     """The selection at ``sel.k`` on the weighted balance ``bal_w``.
 
     Returns
@@ -57,7 +58,7 @@ def reselect(bal_w, forced, sel, *, scale_system, admissible, time_limit=None, p
     try:
         sel_w = select(bal_w, forced, n_terms=sel.k, scale_system=scale_system,
                        admissible=admissible, time_limit=time_limit,
-                       work_limit=budget(first), progress=progress)
+                       work_limit=budget(first), progress=progress, backend=backend)
     except (ValueError, KeyboardInterrupt):
         return sel, False
     res = sel_w.search

@@ -25,7 +25,7 @@ import numpy as np
 
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, clearly_not_pd, reducible
 from .fitting import coef_on_support, column_norms, normal_equations, normalise_columns
-from .subset_tree import tree_scores
+from .subset_tree import combinations, subtree_scores, subtree_supports, tree_scores
 
 __all__ = ["combinations", "Candidate", "SearchResult", "Visit", "best_subset", "visit", "score_all",
            "score_supports", "DEGENERACY_TOL", "NoAdmissibleModel"]
@@ -35,23 +35,6 @@ __all__ = ["combinations", "Candidate", "SearchResult", "Visit", "best_subset", 
 # > 1e-8.  1e-10 separates the two with margin.
 DEGENERACY_TOL = 1e-10
 _CHUNK = 200_000
-
-
-def combinations(n: int, r: int) -> np.ndarray:
-    """All r-subsets of range(n) in lexicographic order, as an int array (C(n, r), r), vectorised."""
-    if r == 0:
-        return np.zeros((1, 0), dtype=np.int64)
-    if r > n:
-        return np.zeros((0, r), dtype=np.int64)
-    rows = np.arange(n - r + 1, dtype=np.int64)[:, None]
-    for j in range(1, r):
-        last = rows[:, -1]
-        counts = (n - r + j) - last            # next element ranges over last+1 .. n-r+j
-        rep = np.repeat(rows, counts, axis=0)
-        starts = np.repeat(last + 1, counts)
-        offs = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-        rows = np.hstack([rep, (starts + offs)[:, None]])
-    return rows
 
 
 def _cholesky_batched(G: np.ndarray):
@@ -224,7 +207,8 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                 admissible: Callable | None = None, D: np.ndarray | None = None,
                 scale_system: tuple | None = None, max_visits: int = 20_000,
                 n_report: int = 10, progress: Callable | None = None,
-                structure: tuple | None = None, kinetic: np.ndarray | None = None) -> SearchResult:
+                structure: tuple | None = None, kinetic: np.ndarray | None = None,
+                backend=None) -> SearchResult:
     """Best k-term support of ``A ξ ≈ b`` (or of a null vector of ``A`` when ``b`` is None).
 
     Parameters
@@ -252,6 +236,9 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         What the admissibility rules rule out before any fit (:func:`visit`).
     kinetic : array (s, n, n, p), optional
         Driven data: ∂²θ/∂q̇∂q̇ at some sample states, for the batched kinetic rule (:func:`visit`).
+    backend : object, optional
+        Where the supports are scored (its ``score_all``; e.g.
+        :class:`~lsindy_cas.identify.distributed.DaskBackend`); None: in this process.
     """
     m, p = A.shape
     forced = sorted(set(int(j) for j in forced))
@@ -259,7 +246,8 @@ def best_subset(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         raise ValueError(f"n_terms must be between 1 and the library size {p}, got {k}")
     if len(forced) > k:
         raise ValueError(f"{len(forced)} prior terms do not fit in n_terms = {k}")
-    supports, scores, degenerate = score_all(A, b, k, forced, D, progress)
+    scorer = score_all if backend is None else backend.score_all
+    supports, scores, degenerate = scorer(A, b, k, forced, D, progress)
     v = visit(A, b, supports, scores, degenerate, admissible=admissible, scale_system=scale_system,
               max_visits=max_visits, n_report=n_report, structure=structure, kinetic=kinetic)
     if v.winner is None:
@@ -410,11 +398,6 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
     -------
     supports : int array (n, k); scores : array (n,); degenerate : bool array (n,)
     """
-    from .distributed import current
-    client = current()
-    if client is not None:            # a Dask cluster set by distributed.using: same answer
-        from .distributed import score_all_distributed
-        return score_all_distributed(client, A, b, k, forced, D, progress)
     p = A.shape[1]
     forced = sorted(set(int(j) for j in forced))
     free = np.array([j for j in range(p) if j not in set(forced)], dtype=np.int64)
@@ -430,7 +413,6 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
             return supports, scores, pivots < DEGENERACY_TOL
         # subtree by subtree (supports whose smallest free column is free[i]), as the Dask
         # workers do (identify/distributed.py): the same numbers bit for bit in both
-        from .distributed import subtree_scores, subtree_supports
         supports = subtree_supports(forced, free, k)
         scores, pivots, done = [], [], 0
         for i in range(len(free)):
@@ -441,7 +423,6 @@ def score_all(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), D: np.ndar
             if progress is not None and len(sc):
                 progress(done, len(supports))
         return supports, np.concatenate(scores), np.concatenate(pivots) < DEGENERACY_TOL
-    from .distributed import subtree_supports
     supports = subtree_supports(forced, free, k)
     scores, degenerate = score_supports(A, b, supports, D, progress)
     return supports, scores, degenerate

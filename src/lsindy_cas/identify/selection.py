@@ -260,7 +260,8 @@ class _Columns:
 
 
 def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
-              time_limit=None, automatic=False, work_left=AUTO_WORK, work_limit=None):
+              time_limit=None, automatic=False, work_left=AUTO_WORK, work_limit=None,
+              backend=None):
     """Best admissible k-support, SearchResult in full indices: exhaustive up to EXHAUSTIVE
     supports; beyond, with ``automatic``, the beam from ``prev`` or else a branch-and-bound scout
     (module notes), otherwise branch and bound.  Raises NoAdmissibleModel."""
@@ -288,20 +289,14 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
                                         "are spent: give n_terms, prior terms or max_terms", k,
                                         False)
             work_limit = min(SCOUT_WORK, work_left)
-        from .distributed import current
-        client = current()                               # a Dask cluster: subtrees as tasks
-        kw = dict(admissible=adm, D=D if bal.passive else None, scale_system=scale_system,
-                  time_limit=time_limit, progress=progress, structure=structure)
-        if client is None:
-            res = branch_and_bound(A, bal.b, k, f_loc, work_limit=work_limit, **kw)
-        else:
-            from .distributed_bnb import branch_and_bound_distributed
-            res = branch_and_bound_distributed(client, A, bal.b, k, f_loc, work_limit=work_limit,
-                                               **kw)
+        search = branch_and_bound if backend is None else backend.branch_and_bound
+        res = search(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
+                     scale_system=scale_system, time_limit=time_limit, progress=progress,
+                     structure=structure, work_limit=work_limit)
     elif res is None:
         res = best_subset(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                           scale_system=scale_system, progress=progress, structure=structure,
-                          kinetic=kinetic)
+                          kinetic=kinetic, backend=backend)
     res.support = cols.full(res.support)
     res.coef = cols.full_coef(res.coef, p)
     for c in res.candidates:
@@ -358,7 +353,7 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
 def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible: Callable | None = None,
            scale_system=None, exclude=(), max_terms: int | None = None, noise=None,
            progress: Callable | None = None, time_limit: float | None = None,
-           work_limit: float | None = None) -> Selection:
+           work_limit: float | None = None, backend=None) -> Selection:
     """Choose the support (and k when ``n_terms`` is None) of the energy.
 
     Parameters
@@ -385,6 +380,9 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         search at the given k, or each scout of the automatic scan and the chosen k's certificate.
     work_limit : float, optional
         With ``n_terms``: the branch and bound's work limit (:mod:`~lsindy_cas.identify.bnb`).
+    backend : object, optional
+        Where the searches run (:mod:`~lsindy_cas.identify.distributed`: ``score_all`` and
+        ``branch_and_bound``); None: in this process.
 
     Returns
     -------
@@ -398,7 +396,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     folds = fold_ids(bal)
     if n_terms is not None:
         res, _ = _search_k(bal, int(n_terms), forced, cols, admissible, scale_system, progress, None,
-                           time_limit, work_limit=work_limit)
+                           time_limit, work_limit=work_limit, backend=backend)
         cv, per = cv_error(bal, res.support, folds)
         step = Step(int(n_terms), res.support, res.coef, res.score, cv, per, res,
                     chi=_chi(bal, res, noise))
@@ -413,7 +411,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         t0 = time.monotonic()
         try:
             res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev,
-                                  time_limit, automatic=True, work_left=AUTO_WORK - work)
+                                  time_limit, automatic=True, work_left=AUTO_WORK - work,
+                                  backend=backend)
         except NoAdmissibleModel as exc:  # no admissible k-term model found: say so, try k + 1
             work += exc.work
             unscored.append(Unscored(k, str(exc), exc.proven, time.monotonic() - t0, exc.work))
@@ -426,7 +425,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
             try:
                 scout, _ = _search_k(bal, k, forced, cols, admissible, scale_system, progress,
                                      None, time_limit, automatic=True,
-                                     work_left=AUTO_WORK - work)
+                                     work_left=AUTO_WORK - work, backend=backend)
                 work += scout.work
                 if scout.score < res.score - SCORE_RESOLUTION:
                     step = _step(bal, k, scout, True, folds, noise)
@@ -454,13 +453,13 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         best = fits
     if best.search is not None and (best.search.method == "beam" or not best.search.proven):
         best = _certify(bal, best, steps, forced, cols, admissible, scale_system, progress, noise,
-                        folds, time_limit, AUTO_WORK - work)
+                        folds, time_limit, AUTO_WORK - work, backend)
     return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded,
                      unscored)
 
 
 def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress, noise, folds,
-             time_limit, work_left) -> Step:
+             time_limit, work_left, backend=None) -> Step:
     """The chosen k came from the beam or a scout (no certificate): search it again by branch and
     bound (``time_limit`` seconds, or without one what is left of AUTO_WORK) and keep its answer —
     the same support, now with a certificate, or a better-scoring admissible one the first search
@@ -469,7 +468,8 @@ def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress,
         return step                      # the scan spent its budget: no certificate
     try:
         res, _ = _search_k(bal, step.k, forced, cols, admissible, scale_system, progress, None,
-                           time_limit, work_limit=None if time_limit is not None else work_left)
+                           time_limit, work_limit=None if time_limit is not None else work_left,
+                           backend=backend)
     except (NoAdmissibleModel, KeyboardInterrupt):
         return step
     if res.score > step.score + SCORE_RESOLUTION:
