@@ -27,7 +27,7 @@ G = 9.81
 DOUBLE = dict(masses=(1.0, 0.6), lengths=(0.5, 0.4), radii=(0.03, 0.03), damping=(0.02, 0.01))
 TRIPLE = dict(masses=(1.0, 0.6, 0.4), lengths=(0.5, 0.4, 0.3), radii=(0.03, 0.03, 0.03),
               damping=(0.02, 0.01, 0.005))
-# 1 % is the target accuracy of the energy and damping coefficients; measured errors are ≤ 0.3 %
+# 1 % is the target accuracy of the energy and damping coefficients; measured errors are ≤ 0.4 %
 # (benchmarks/results/passive_damping/passive_damping.md)
 REL_TOL = 0.01
 
@@ -215,7 +215,7 @@ def test_a_dissipated_quantity_is_not_conserved():
     assert cq.conserved_combination(proj(conserved), conserved, [0, 1], 1e-10) is not None
 
 
-# ------------------------------------------------------------------ MuJoCo identification (slow)
+# ------------------------------------------------------------------ MuJoCo identification
 # Candidate terms: the energy's own (from the hand derivation) plus plausible distractors,
 # including cos²θ2 and sin²θ2, whose sum is the identity that made the false verdict.
 DOUBLE_EXTRA = ["sin(theta1)", "cos(theta2)", "sin(theta2)", "theta1_dot**2*cos(theta1)",
@@ -232,11 +232,11 @@ def _dissipation(n):
             for i in range(n) for j in range(i, n)]
 
 
-def _identify(params, extra, seed, library=None, seconds=3.0):
+def _identify(params, extra, seed, library=None, n_runs=3, seconds=3.0):
     chain = _chain()
     plant = chain.pendulum_chain(**params)
     truth = chain.energy_terms(plant)
-    runs = chain.free_swings(plant, np.random.default_rng(seed), n_runs=3, seconds=seconds)
+    runs = chain.free_swings(plant, np.random.default_rng(seed), n_runs=n_runs, seconds=seconds)
     lib = library or Library(plant.coords, list(truth) + extra)
     model = LagrangianSINDy(lib, n_terms=len(truth), prior=PRIOR,
                             dissipation=_dissipation(len(plant.coords))).fit(
@@ -257,8 +257,8 @@ def _check(plant, truth, model):
     assert model.status_ == "ok", model.status_reasons_
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow),
+                                  pytest.param(2, marks=pytest.mark.slow)])
 def test_damped_double_pendulum_from_free_swings(seed):
     """3 free swings of 3 s: exact support, energy and damping within 1 %, status ok."""
     _check(*_identify(DOUBLE, DOUBLE_EXTRA, seed))
@@ -266,14 +266,15 @@ def test_damped_double_pendulum_from_free_swings(seed):
 
 @pytest.mark.slow
 def test_damped_triple_pendulum_from_free_swings():
-    """26 energy terms (degree 4 in cos/sin and rates) among 31 candidates."""
-    _check(*_identify(TRIPLE, TRIPLE_EXTRA, 0))
+    """26 energy terms (degree 4 in cos/sin and rates) among 31 candidates; 5 free swings of 4 s
+    (with 3 of 3 s a small coupling term came out 1.5 % off on one seed in three)."""
+    _check(*_identify(TRIPLE, TRIPLE_EXTRA, 2, n_runs=5, seconds=4.0))
 
 
 @pytest.mark.slow
 def test_damped_double_pendulum_full_degree_3_library():
     """The reported case: all 83 products of degree ≤ 3 of cos/sin of the angles and the rates,
-    8 terms, three priors (branch and bound visits identity supports; ~4 min)."""
+    8 terms, three priors (branch and bound visits identity supports; 2–3 min)."""
     feats = ["cos(theta1)", "sin(theta1)", "cos(theta2)", "sin(theta2)", "theta1_dot", "theta2_dot"]
     lib = Library.polynomial(["theta1", "theta2"], feats, 3)
     _check(*_identify(DOUBLE, [], 0, library=lib, seconds=2.0))
