@@ -260,8 +260,9 @@ def _check(plant, truth, model):
 @pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow),
                                   pytest.param(2, marks=pytest.mark.slow)])
 def test_damped_double_pendulum_from_free_swings(seed):
-    """3 free swings of 3 s: exact support, energy and damping within 1 %, status ok."""
-    _check(*_identify(DOUBLE, DOUBLE_EXTRA, seed))
+    """3 free swings (2 s in the fast case, 3 s in the slow ones): exact support, energy and
+    damping within 1 %, status ok, nothing reported as conserved."""
+    _check(*_identify(DOUBLE, DOUBLE_EXTRA, seed, seconds=2.0 if seed == 0 else 3.0))
 
 
 @pytest.mark.slow
