@@ -192,3 +192,18 @@ def test_the_refusal_counts_the_supports_the_structure_rules_out(rng):
                                          r"the rules exclude before any fit\)"):
         best_subset(A, b, 3, admissible=lambda S, c: (False, "structure"),
                     structure=([], [np.array([], dtype=np.int64)]))
+
+
+def test_a_scan_with_only_undecided_ks_says_so(rng, monkeypatch):
+    """When no k yields a model and some searches stopped before deciding, the refusal names
+    those k and how to get a model (give k), instead of claiming that none exists."""
+    bal = _synthetic(rng)
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+
+    def blind(A, b, k, *args, **kw):
+        raise selection.NoAdmissibleModel(f"no {k}-term model found in 0.1 s", k, False, 0.1, 5.0)
+
+    monkeypatch.setattr(selection, "branch_and_bound", blind)
+    with pytest.raises(selection.UndeterminedError, match=r"k = 1, 2, .* stopped undecided"
+                                                          r".*--terms"):
+        select(bal, [], max_terms=4)

@@ -445,6 +445,14 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         if k - max(best.k, lowest.k) >= 2 and _fair(best):
             break
     if best is None:
+        open_k = [u.k for u in unscored if not u.proven]
+        if open_k:                       # not a proof: the scouts stopped before finding one
+            raise UndeterminedError(
+                f"no model found for any number of terms {k_lo}..{k_hi}: the searches of k = "
+                + ", ".join(map(str, open_k)) + f" stopped undecided (a scout's {SCOUT_WORK:,} "
+                f"units of work each, {AUTO_WORK:,} for the scan) — give the number of terms "
+                "(n_terms / --terms), prior terms or a smaller library ("
+                + "; ".join(str(u) for u in unscored[:3]) + ")")
         raise UndeterminedError("the data cannot identify the energy: no physically admissible model "
                          f"with significant terms for any number of terms {k_lo}..{k_hi} — vary "
                          "the input, add runs or check the library ("
