@@ -190,6 +190,26 @@ def main(out_dir=None, quick=False, verbose=True, starts=0):
     return results
 
 
+def validate_saved(path, quick=False, verbose=True) -> dict:
+    """The validation table for a saved model file (e.g. from ``lsindy identify ... --json``),
+    against the authors' fit from the same starts: {piece: {"ours": rms, "authors": rms}}."""
+    model = LagrangianSINDy.load(path)
+    ids, vals = load(quick)
+    tau = rate_lag(ids)
+    a_terms, a_diss, a_coef = authors_model()
+    theirs = ParametricDynamics(COORDS, a_terms, a_diss).bind(a_coef)
+    x0 = [initial_state(model.ode(), tr.X[0], tau) for tr in vals]
+    ours, theirs_rms = rms_table(model.ode(), vals, x0)[0], rms_table(theirs, vals, x0)[0]
+    out = {f"val{i + 1}": {"ours": ours[i], "authors": theirs_rms[i]} for i in range(len(vals))}
+    if verbose:
+        print(f"model {path}: status {model.status_}")
+        print(f"{'piece':<6}{'model':<22}{'1 s':>10}{'3 s':>10}{'end':>10}")
+        for piece, row in out.items():
+            for who in ("ours", "authors"):
+                print(f"{piece:<6}{who:<22}" + "".join(f"{v:>10.2e}" for v in row[who]))
+    return out
+
+
 def _print(results, model):
     b = results["energy_balance"]
     print("energy balance: H =", {k: round(v, 5) for k, v in b["hamiltonian_terms"].items()},
@@ -246,7 +266,14 @@ if __name__ == "__main__":
     parser.add_argument("--quick", action="store_true", help="first 2 s / 3 s of each piece only")
     parser.add_argument("--starts", type=int, default=0, metavar="N",
                         help="also predict from each of the first N samples (1 s, 3 s horizons)")
+    parser.add_argument("--model", metavar="FILE",
+                        help="only validate this saved model (e.g. from lsindy identify --json)")
     args = parser.parse_args()
     if args.starts < 0:
         parser.error(f"--starts must be >= 0, got {args.starts}")
-    main(args.out, quick=args.quick, starts=args.starts)
+    if args.model is not None:
+        if not Path(args.model).is_file():
+            parser.error(f"--model {args.model}: no such file")
+        validate_saved(args.model, quick=args.quick)
+    else:
+        main(args.out, quick=args.quick, starts=args.starts)
