@@ -88,12 +88,12 @@ MAX_VISITS = 2000          # beam: candidates examined for admissibility before 
 MAX_EXTRA = 8              # automatic k: at most this many terms beyond the prior terms
 # Automatic k: work (bnb_drive units) of a branch and bound in the scan — a scout: what the scan
 # compares across k is the best model each k offers, which the search finds early (double pendulum,
-# rich σ = 1e-2: the k = 4 incumbent of a 60 s search was there at 5 s, ~1e5 units at the 16–31 k
-# units/s measured on it; proving it best needs far more: below k = 6 no bound is above the
-# round-off of a superset fit).
-SCOUT_WORK = 100_000
+# rich σ = 1e-2: the k = 4 incumbent of a 60 s search was there at 5 s; proving it best needs far
+# more: below k = 6 no bound is above the round-off of a superset fit).  Measured rates 7 k units/s
+# (that case: 93 k nodes in 13.5 s) to 31 k units/s (the paper's run), so a scout is ~2–7 s.
+SCOUT_WORK = 50_000
 # Automatic k: work of all the scouts of one scan together, and of the chosen k's certificate
-# without a time limit (~40–75 s at the rates above): a refusal never takes minutes per k.
+# without a time limit (~40–170 s at the rates above): a refusal never takes minutes per k.
 AUTO_WORK = 1_200_000
 # Held-out errors below this (a relative residual of 1e-9, the accuracy of a simulation at
 # rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
