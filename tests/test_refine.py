@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from lsindy_cas import Trajectory
+from lsindy_cas import LagrangianSINDy, Library, Trajectory, systems
 from lsindy_cas.identify.refine import predict, refine
 from lsindy_cas.mechanics.euler_lagrange import simulate_ode
 from lsindy_cas.mechanics.parametric import ParametricDynamics
@@ -174,3 +174,19 @@ def test_cli_refine(tmp_path, swings):
     r = subprocess.run(cli + [str(tmp_path / "uneven.csv")] + options + ["--refine"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and "not uniformly sampled" in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_an_inadmissible_optimum_is_not_applied(monkeypatch):
+    """When the prediction-error optimum is not a mechanical system on the data, the refinement
+    is not applied and says why (it used to raise, a traceback in ``lsindy identify --refine``)."""
+    from lsindy_cas.identify import refine as rf
+    monkeypatch.setattr(rf, "_check_admissible", lambda dyn, p, trs: "refused: planted reason")
+    s = systems.cart_pendulum()
+    lib = Library.polynomial(s.coords, ["cos(theta)", "theta_dot", "x_dot"], 3)
+    run = s.simulate(t_end=1.0, u=1.0)
+    model = LagrangianSINDy(lib, n_terms=4, prior=["theta_dot**2", "cos(theta)"]).fit(run)
+    before = model.coef_.copy()
+    model.refine(run)
+    assert not model.refinement_["applied"] and model.refinement_["status"].startswith("refused")
+    np.testing.assert_array_equal(model.coef_, before)      # untouched, not recomputed
+    assert "planted reason" in rf.refinement_text(model.refinement_)

@@ -56,7 +56,9 @@ class RefineResult:
         the starting and with the refined coefficients: from the first measured sample, or
         (``free_start``) from the initial states fitted for each set of coefficients.
     status : str
-        IPOPT's return status; ``success`` whether it converged.
+        IPOPT's return status, or "refused: ..." when the optimum is not a mechanical system on
+        the data (mass matrix not positive definite, or friction that creates energy);
+        ``success`` whether it converged to an admissible optimum (otherwise nothing is applied).
     """
 
     names: list
@@ -130,19 +132,21 @@ def _bounds(dyn: ParametricDynamics, lower, upper):
     return lb, ub
 
 
-def _check_admissible(dyn: ParametricDynamics, p, trajectories):
+def _check_admissible(dyn: ParametricDynamics, p, trajectories) -> str | None:
+    """Why the refined coefficients are not a mechanical system on the data, or None."""
     X = np.vstack([tr.X for tr in trajectories])
     M = np.asarray(dyn.mass_matrix().map(len(X))(X.T, p)).T.reshape(len(X), dyn.coords.n, -1)
     low = np.linalg.eigvalsh(0.5 * (M + np.transpose(M, (0, 2, 1))))[:, 0].min()
     if not low > 0:
-        raise RuntimeError(f"refined model refused: its mass matrix is not positive definite on the "
-                           f"data (smallest eigenvalue {low:.3g})")
+        return (f"refused: the refined mass matrix is not positive definite on the data "
+                f"(smallest eigenvalue {low:.3g})")
     f = np.asarray(dyn.friction().map(len(X))(X.T, p)).T
     n = dyn.coords.n
     power = -np.sum(f * X[:, n:], axis=1)
     if power.min() < -1e-9 * max(1.0, np.abs(power).max()):
-        raise RuntimeError(f"refined model refused: its friction creates energy on the data "
-                           f"(dissipated power down to {power.min():.3g})")
+        return (f"refused: the refined friction creates energy on the data (dissipated power "
+                f"down to {power.min():.3g})")
+    return None
 
 
 def _starts(w, dyn, trajectories, interval) -> list:
@@ -286,7 +290,7 @@ def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fix
     wopt = np.asarray(sol["x"]).ravel()
     coef = np.clip(wopt[:dyn.n_params], lb, ub)    # IPOPT may step outside a bound by its tolerance
     x0s = _starts(wopt, dyn, trajectories, interval)
-    _check_admissible(dyn, coef, trajectories)
+    refused = _check_admissible(dyn, coef, trajectories)   # then not applied, with the reason
 
     def rms(c, starts):
         err = [predict(dyn, c, x0, tr.t, tr.Q, steps)[:, :n] - tr.q
@@ -297,7 +301,7 @@ def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fix
         names=dyn.names, n_lagrangian=dyn.n_lagrangian, coef=coef, initial=p0,
         fixed=[dyn.names[j] for j in fixed_idx], x0=x0s,
         rms_initial=rms(p0, starts0 or first), rms=rms(coef, x0s if free_start else first),
-        status=stats["return_status"], success=bool(stats["success"]),
+        status=refused or stats["return_status"], success=bool(stats["success"]) and not refused,
         iterations=int(stats["iter_count"]), seconds=seconds, n_intervals=n_intervals,
         report={"cost": float(sol["f"]), "interval": interval, "steps": steps,
                 "rate_weight": rate_weight, "eps": eps, "n_samples": n_samples})
@@ -410,7 +414,8 @@ def refinement_text(info: dict) -> str:
     before, after = info["rms_before"], info["rms_refined"]
     drop = 100 * (1 - after / before) if before > 0 else 0.0
     if not info["applied"]:
-        why = (f"IPOPT: {info['status']}" if info["status"] != "Solve_Succeeded"
+        why = (info["status"] if info["status"].startswith("refused")
+               else f"IPOPT: {info['status']}" if info["status"] != "Solve_Succeeded"
                else f"prediction error {before:.3g} -> {after:.3g} did not drop")
         return f"refinement not applied ({why}): coefficients from the energy balance"
     return (f"coefficients refined by prediction error over {info['runs']} run(s) "
