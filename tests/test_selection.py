@@ -103,7 +103,7 @@ def test_fixed_k_agrees_with_the_search(rng):
 
 def test_cv_error_known_answers(rng):
     bal = _synthetic(rng, sigma=0.0)
-    assert cv_error(bal, [0, 1, 2])[0] <= selection._CV_FLOOR       # exact model
+    assert cv_error(bal, [0, 1, 2])[0] <= selection.CV_FLOOR       # exact model
     assert cv_error(bal, [0, 1])[0] > 1e-3                          # a term missing
 
 

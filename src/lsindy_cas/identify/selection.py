@@ -62,10 +62,9 @@ from typing import Callable
 import numpy as np
 
 from .energy_balance import EnergyBalance
-from .fitting import null_vector
+from .held_out import CV_FLOOR, chi_of, cv_error, fold_ids  # noqa: F401 (importable here)
 from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import NoAdmissibleModel, SearchResult, best_subset, score_supports, visit
-from .uncertainty import recentre
 from .findings import UndeterminedError  # noqa: F401 (importable here)
 
 __all__ = ["Step", "Selection", "Unscored", "UndeterminedError", "select", "cv_error", "chi_of",
@@ -95,9 +94,6 @@ SCOUT_WORK = 50_000
 # Automatic k: work of all the scouts of one scan together, and of the chosen k's certificate
 # without a time limit (~40–170 s at the rates above): a refusal never takes minutes per k.
 AUTO_WORK = 1_200_000
-# Held-out errors below this (a relative residual of 1e-9, the accuracy of a simulation at
-# rtol 1e-11 over a few hundred steps) are numerically zero and count as equal.
-_CV_FLOOR = 1e-18
 # A held-out error below this (relative residual 1e-5) is a fit to the quadrature floor of clean
 # data: true energies measured 1e-18 (Acrobot, double pendulum, 2-10 ms samples), the best wrong
 # models of one term more 5e-8 - 8e-6 (Acrobot, 48 runs), so nothing of more terms can do better.
@@ -170,51 +166,6 @@ class Unscored:
     def __str__(self) -> str:
         what = "no admissible model" if self.proven else "undecided"
         return f"k = {self.k}: {what} ({self.reason}; {self.seconds:.1f} s)"
-
-
-def fold_ids(bal: EnergyBalance, n_folds: int = 5):
-    """Held-out folds: (n_rows,) fold id, and whether whole trajectories are held out."""
-    groups = np.zeros(len(bal.A), dtype=int) if bal.groups is None else bal.groups
-    n_groups = int(groups.max()) + 1
-    if n_groups >= 4:
-        return groups % min(n_folds, n_groups), True
-    ids = np.empty(len(groups), dtype=int)
-    for g in range(n_groups):
-        idx = np.flatnonzero(groups == g)
-        ids[idx] = (np.arange(len(idx)) * n_folds) // len(idx)
-    return ids, False
-
-
-def cv_error(bal: EnergyBalance, S, folds=None):
-    """Pooled held-out relative error of support S, and the per-fold errors.
-
-    Driven: ‖A_te ξ − b_te‖² / ‖b_te‖² with ξ fitted on the other folds.  Passive: the fraction of
-    the held-out term changes that the conserved combination fitted on the other folds does not
-    cancel, ‖A_te η‖² / Σ_j ‖A_te,j η_j‖².
-    """
-    S = list(S)
-    ids, whole = fold_ids(bal) if folds is None else folds
-    num, den = [], []
-    for f in np.unique(ids):
-        te, tr = ids == f, ids != f
-        Atr, btr = bal.A[tr][:, S], (None if bal.b is None else bal.b[tr])
-        Ate, bte = bal.A[te][:, S], (None if bal.b is None else bal.b[te])
-        if bal.centred and not whole:
-            Atr, btr = recentre(bal, tr, Atr, btr)
-            Ate, bte = recentre(bal, te, Ate, bte)
-        if bal.b is None:
-            eta = null_vector(Atr)
-            num.append(float(np.sum((Ate @ eta) ** 2)))
-            den.append(float(np.sum((Ate * eta) ** 2)))
-        else:
-            xi = np.linalg.lstsq(Atr, btr, rcond=None)[0]
-            num.append(float(np.sum((Ate @ xi - bte) ** 2)))
-            den.append(float(bte @ bte))
-    num, den = np.array(num), np.array(den)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        per = np.where(den > 0, num / den, 0.0)
-    pooled = float(num.sum() / den.sum()) if den.sum() > 0 else 0.0
-    return max(pooled, _CV_FLOOR), np.maximum(per, _CV_FLOOR)
 
 
 def _better(new: Step, old: Step) -> bool:
@@ -504,12 +455,3 @@ def _chi(bal, res, noise) -> float:
     if noise is None or bal.b is None:
         return float("nan")
     return chi_of(bal, res.coef, noise)
-
-
-def chi_of(bal, coef, noise) -> float:
-    """Residual of the coefficients ``coef`` on the driven balance in units of the noise they carry
-    into it (:meth:`~.uncertainty.NoiseModel.chi`)."""
-    # the residual itself, not score·‖b‖²: the score comes from the normal equations, whose
-    # round-off (~1e-14 relative) would read as a misfit on clean data
-    r = bal.A @ coef - bal.b
-    return noise.chi(coef, float(r @ r), _CV_FLOOR * float(bal.b @ bal.b))

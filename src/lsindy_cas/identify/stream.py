@@ -4,7 +4,7 @@ Everything the search and the checks after it do with the balance depends on its
 Gram matrices — of all rows (the scores, every least-squares fit, column norms, singular values),
 of the rows of one trajectory (held-out folds over whole runs) or of one contiguous stretch of a
 trajectory (the jackknife blocks and the held-out stretches of
-:func:`~lsindy_cas.identify.uncertainty.block_ids`, :func:`~lsindy_cas.identify.selection.fold_ids`).
+:func:`~lsindy_cas.identify.uncertainty.block_ids`, :func:`~lsindy_cas.identify.held_out.fold_ids`).
 So each such block of rows [A_β b_β] is replaced by its R factor (QR, R ᵀR = [A_β b_β]ᵀ[A_β b_β]):
 at most p + 2 rows per block instead of one per sample, built ``chunk`` samples at a time by
 updating R with QR of [R; new rows] (TSQR).  R factors rather than Gram matrices: least squares on
