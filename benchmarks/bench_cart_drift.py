@@ -4,7 +4,7 @@ For each plant of ``bench_family.PLANTS`` (identified from its own simulated run
 equations) and each random start, one swing-up episode (``run_episode``: 10 s, {-10, 0, 10} N
 at 20 Hz), nominal or with the +-10 % mismatch of the family benchmark (same seeds, so the
 episodes are the family benchmark's).  Per episode, from the controller's balancer
-(:class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer`):
+(:class:`~lsindy_cas.control.cart_pendulum.sequence_balancer.SequenceBalancer`):
 
 * the hand-over: time of the first step the balancer acts, the cart's slow coordinates there
   (``p = x - ratio * phi``, ``v0 = x_dot - ratio * theta_dot``: the pushes do not move them)

@@ -1,9 +1,9 @@
 """Can the pole be held in the success band with the cart on the track for ever? 4-D kernels.
 
 For plants of ``bench_family.PLANTS`` (their exact upright linearisation), the joint pole/cart
-viability kernel of :mod:`lsindy_cas.control.cart_kernel` (pole band |phi| < 0.1 rad,
+viability kernel of :mod:`lsindy_cas.control.cart_pendulum.cart_kernel` (pole band |phi| < 0.1 rad,
 |theta_dot| < 0.5 rad/s, cart |x| <= 2 m, {-10, 0, 10} N at 20 Hz) beside the pole-only kernel
-of :mod:`lsindy_cas.control.viability` on the same pole grid.  Reported: the share of the pole
+of :mod:`lsindy_cas.control.cart_pendulum.viability` on the same pole grid.  Reported: the share of the pole
 band that is viable with the cart at rest at the centre (``p = v0 = 0``) in the 4-D kernel and
 in the 2-D one, the share of the whole 4-D grid, and the build time and sweeps.  A 4-D share
 near 0 where the 2-D share is not says: the pole can be held, but not with the cart on the track
@@ -33,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_family import DT, FORCE, PLANTS, kick  # noqa: E402
 
 from lsindy_cas import systems  # noqa: E402
-from lsindy_cas.control.cart_kernel import cart_pole_kernel  # noqa: E402
-from lsindy_cas.control.viability import pole_kernel  # noqa: E402
+from lsindy_cas.control.cart_pendulum.cart_kernel import cart_pole_kernel  # noqa: E402
+from lsindy_cas.control.cart_pendulum.viability import pole_kernel  # noqa: E402
 
 
 def main(argv=None):

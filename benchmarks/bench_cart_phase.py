@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from lsindy_cas import systems
-from lsindy_cas.control.upright import com_speed_step
-from lsindy_cas.control.viability import upright_jacobians
+from lsindy_cas.control.cart_pendulum.upright import com_speed_step
+from lsindy_cas.control.cart_pendulum.viability import upright_jacobians
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import (Plant, evaluate, identify_cart_pendulum, in_band,
                                       random_starts)

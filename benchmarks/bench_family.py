@@ -13,7 +13,7 @@ and pole length each off by +-10 %, signs drawn per episode).  Success as in ``l
 
 Physically out of reach: an episode whose simulated plant has an empty viability kernel (no
 level sequence keeps its pole in the success band for ever on its exact upright linearisation,
-:mod:`lsindy_cas.control.viability`) is classed ``unreachable`` when it fails, and success is
+:mod:`lsindy_cas.control.cart_pendulum.viability`) is classed ``unreachable`` when it fails, and success is
 reported over all episodes and over the reachable ones.  (For ever is more than the criterion's
 last 3 s: one such episode, 1.2/0.1/0.5 mismatched, has succeeded.)
 
@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from lsindy_cas import systems
-from lsindy_cas.control.viability import pole_kernel
+from lsindy_cas.control.cart_pendulum.viability import pole_kernel
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import (Plant, identify_cart_pendulum, random_starts, released_at,
                                      run_episode)
@@ -90,7 +90,7 @@ def true_kick(system):
 @functools.lru_cache(maxsize=None)
 def plant_kernel(mc, mp, L):
     """Viability kernel of the pole of the plant actually simulated (its exact upright
-    linearisation, :func:`lsindy_cas.control.viability.pole_kernel`): empty means that no
+    linearisation, :func:`lsindy_cas.control.cart_pendulum.viability.pole_kernel`): empty means that no
     controller keeps this plant's pole in the success band with {-10, 0, 10} N at 20 Hz."""
     system = systems.cart_pendulum(mc=mc, mp=mp, L=L)
     return pole_kernel(system.ode(), 0, 1, np.pi, DT, (-FORCE, 0.0, FORCE))

@@ -11,7 +11,7 @@ For each cart-pendulum below, MuJoCo (an engine we did not write) is the plant t
    |x| ≤ 2 m throughout).
 
 The exact-model ceiling (the controller built from the plant's true equations) runs beside it,
-and the plant's viability-kernel margin (``lsindy_cas.control.viability``; "empty": no
+and the plant's viability-kernel margin (``lsindy_cas.control.cart_pendulum.viability``; "empty": no
 controller can hold the pole in the success band with these forces) is reported per plant.
 
     python benchmarks/bench_mujoco_swingup.py --out bench-results            # 10 starts per plant
@@ -88,7 +88,7 @@ def main(argv=None):
     if args.starts < 1:
         ap.error("--starts must be a positive integer")
 
-    from lsindy_cas.control.viability import pole_kernel
+    from lsindy_cas.control.cart_pendulum.viability import pole_kernel
     from lsindy_cas.mpc import SwingUpMPC
     from lsindy_cas.paper import systems
     from lsindy_cas.paper.swingup import random_starts, run_episode
@@ -109,7 +109,7 @@ def main(argv=None):
         coef_err = (max(abs(got.get(k, 0.0) / v - 1) for k, v in true_terms.items())
                     if set(got) == set(true_terms) else float("inf"))
         # the certificate: an empty viability kernel of the plant's own upright linearisation
-        # means no controller can hold its pole in the success band (control/viability.py)
+        # means no controller can hold its pole in the success band (control/cart_pendulum/viability.py)
         kernel = pole_kernel(truth.ode(), 0, 1, np.pi, DT, (-10.0, 0.0, 10.0))
         row = {"plant": name, "mc": mc, "mp": mp, "L": L, "kick_rad_s": 10 * DT / (mc * L),
                "kernel_margin": kernel.max_margin, "proven_unreachable": kernel.empty,

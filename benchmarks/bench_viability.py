@@ -2,7 +2,7 @@
 
 For every plant of the family benchmark (``bench_family.PLANTS``) and each of the 8 sign
 patterns of its +-10 % mismatch (cart mass, pole mass, pole length), the viability kernel of the
-pole at the upright (:mod:`lsindy_cas.control.viability`, built from the plant's exact
+pole at the upright (:mod:`lsindy_cas.control.cart_pendulum.viability`, built from the plant's exact
 upright linearisation): its largest margin (negative: empty, no controller can hold the pole
 in the success band |phi| < 0.1 rad, |theta_dot| < 0.5 rad/s), the share of the band it covers,
 whether 8 settled starts (|phi| < 0.03, |theta_dot| < 0.2) are inside, and the build time;
@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_family import DT, FORCE, PLANTS, QUICK, kick  # noqa: E402
 
 from lsindy_cas import systems  # noqa: E402
-from lsindy_cas.control.viability import pole_kernel  # noqa: E402
+from lsindy_cas.control.cart_pendulum.viability import pole_kernel  # noqa: E402
 
 
 def settled(n=8, seed=0):
@@ -60,7 +60,7 @@ def plan_times(mc=0.8, mp=0.2, L=0.7, starts=6, steps=60):
     import casadi as ca
     from scipy.linalg import expm
 
-    from lsindy_cas.control.sequence_balancer import SequenceBalancer
+    from lsindy_cas.control.cart_pendulum.sequence_balancer import SequenceBalancer
     ode = systems.cart_pendulum(mc=mc, mp=mp, L=L).ode()
     xs, us = ca.SX.sym("x", 4), ca.SX.sym("u", 2)
     jac = ca.Function("j", [xs, us], [ca.jacobian(ode(xs, us), xs),

@@ -4,7 +4,7 @@ Where one push's kick is so large that the pushes must alternate, the cart creep
 the start fixes (``bench_cart_phase.py``), and reversing that creep takes two pushes of one sign;
 between them the pole's rate must turn round, which it does only at a lean of ``turn_lean =
 (kick - 0.5) / omega`` or more.  Where that exceeds the success band's 0.1 rad, every reversal
-leaves the band (:func:`lsindy_cas.control.upright.reversal_margin` checks it exactly, a linear
+leaves the band (:func:`lsindy_cas.control.cart_pendulum.upright.reversal_margin` checks it exactly, a linear
 program on the plant's own upright linearisation with the band at 5 instants per period as
 success is judged and the pushes at most 1 s apart), so no controller keeps such a pole in the
 band once the track forces a reversal: its 10 s success is a matter of when that falls, and such
@@ -32,8 +32,8 @@ import numpy as np
 
 from lsindy_cas import systems
 from lsindy_cas.control.ocp import rk4_step
-from lsindy_cas.control.sequence_balancer import SequenceBalancer
-from lsindy_cas.control.upright import reversal_margin
+from lsindy_cas.control.cart_pendulum.sequence_balancer import SequenceBalancer
+from lsindy_cas.control.cart_pendulum.upright import reversal_margin
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' helpers
 from _cli import out_folder  # noqa: E402

@@ -6,6 +6,7 @@ module (inside functions too), relative ones resolved to absolute module names, 
 import that a test run happens not to execute.
 """
 import ast
+import re
 import io
 import os
 import subprocess
@@ -243,3 +244,33 @@ def test_every_module_is_on_the_architecture_map():
     text = (PACKAGE.parents[1] / "docs" / "architecture.md").read_text()
     missing = [str(p.relative_to(PACKAGE)) for p in _modules() if p.name not in text]
     assert not missing, missing
+
+
+CONTROL = PACKAGE / "control"
+# the words that name the one system with a plug-in; the generic core must not need them
+SYSTEM_WORDS = re.compile(r"(?<![a-z])(cart|pole|theta)(?=s\b|_|\b)", re.IGNORECASE)
+
+
+def test_the_control_core_names_no_system():
+    """control/*.py (the generic core) holds no coordinate or system name, in code or text."""
+    found = [f"{p.name}:{i}: {line.strip()}" for p in sorted(CONTROL.glob("*.py"))
+             for i, line in enumerate(p.read_text().splitlines(), 1) if SYSTEM_WORDS.search(line)]
+    assert not found, "\n".join(found)
+
+
+def test_the_control_core_imports_no_plugin():
+    """Plug-ins (control's sub-packages) are found by name at run time, never imported by the
+    core, so the core works without any of them."""
+    plugins = {p.parent.name for p in CONTROL.glob("*/__init__.py")}
+    assert plugins, "no plug-in sub-package found"
+    broken = [f"{p.name} imports {name}" for p in sorted(CONTROL.glob("*.py"))
+              for name in imports_of(p) for sub in plugins
+              if name == f"lsindy_cas.control.{sub}" or name.startswith(f"lsindy_cas.control.{sub}.")]
+    assert not broken, broken
+
+
+def test_the_word_check_sees_a_system_name():
+    for text in ("the cart's track", "theta_dot = 0", "x_theta", "two Poles", "carts"):
+        assert SYSTEM_WORDS.search(text), text
+    for text in ("polynomial, cartesian", "thetas_hat2", "upright, polar"):
+        assert not SYSTEM_WORDS.search(text), text

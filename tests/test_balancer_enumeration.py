@@ -1,6 +1,6 @@
 """The pulse balancer's choice against a brute-force reference: every sequence simulated one
 interval at a time on the upright linearisation (no superposition, no shared prefixes), its band
-violation and cost computed by their definitions (``control/balancer.py``), and the lexicographic
+violation and cost computed by their definitions (``control/cart_pendulum/balancer.py``), and the lexicographic
 rule applied.  The balancer's first level must start one of the reference's best sequences."""
 
 import casadi as ca
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas.control.balancer import PulseBalancer, _sequences
+from lsindy_cas.control.cart_pendulum.balancer import PulseBalancer, _sequences
 from lsindy_cas.control.mpc import wrap_angle
 from lsindy_cas.mpc import SwingUpMPC
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas.control.balancer import PulseBalancer
-from lsindy_cas.control.sequence_balancer import SequenceBalancer
+from lsindy_cas.control.cart_pendulum.balancer import PulseBalancer
+from lsindy_cas.control.cart_pendulum.sequence_balancer import SequenceBalancer
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant, random_starts, run_episode
 
@@ -25,20 +25,20 @@ def test_the_push_estimate_switches_the_balancer_for_the_episode(nominal):
     up = np.array([0.0, np.pi + 0.02, 0.0, 0.1])
     rate = 2 + ctrl.pole_index
     # 0.5 * (1 + 0.15) = 0.575 < 0.6: stays; 0.5 * 1.25 = 0.625 >= 0.6: switches
-    ctrl.correction.theta[rate, 0] = 0.15
+    ctrl.correction.estimate[rate, 0] = 0.15
     ctrl._own_level(up)
     assert isinstance(ctrl.balancer, PulseBalancer) and ctrl.stats.n_escalated == 0
-    ctrl.correction.theta[rate, 0] = 0.25
+    ctrl.correction.estimate[rate, 0] = 0.25
     assert ctrl._own_level(up) in (0, 1, 2)
     assert isinstance(ctrl.balancer, SequenceBalancer) and ctrl.stats.n_escalated == 1
-    ctrl.correction.theta[rate, 0] = 0.0  # for the rest of the episode
+    ctrl.correction.estimate[rate, 0] = 0.0  # for the rest of the episode
     ctrl._own_level(up)
     assert isinstance(ctrl.balancer, SequenceBalancer) and ctrl.stats.n_escalated == 1
     ctrl.reset()
     assert isinstance(ctrl.balancer, PulseBalancer)
     # an explicit choice never switches
     fixed = SwingUpMPC(nominal, balance={"method": "pulse"})
-    fixed.correction.theta[rate, 0] = 0.5
+    fixed.correction.estimate[rate, 0] = 0.5
     fixed._own_level(up)
     assert isinstance(fixed.balancer, PulseBalancer) and fixed._escalation is None
     assert SwingUpMPC(nominal, adapt=False)._escalation is None  # no estimate to switch on

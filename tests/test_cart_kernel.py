@@ -1,11 +1,11 @@
-"""The joint pole/cart viability kernel at the upright (control/cart_kernel.py)."""
+"""The joint pole/cart viability kernel at the upright (control/cart_pendulum/cart_kernel.py)."""
 
 import numpy as np
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas.control.cart_kernel import CartPoleKernel, cart_pole_kernel
-from lsindy_cas.control.viability import pole_kernel
+from lsindy_cas.control.cart_pendulum.cart_kernel import CartPoleKernel, cart_pole_kernel
+from lsindy_cas.control.cart_pendulum.viability import pole_kernel
 
 FORCES = (-10.0, 0.0, 10.0)
 G = 9.81

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lsindy_cas.control.coefficients import CoefficientEstimator, parametric_form
-from lsindy_cas.control.upright import swing_up_gate
+from lsindy_cas.control.cart_pendulum.upright import swing_up_gate
 from lsindy_cas.control.mpc import wrap_angle
 from lsindy_cas.control.ocp import rk4_step
 from lsindy_cas.paper import systems

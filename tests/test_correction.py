@@ -41,7 +41,7 @@ def test_converges_to_the_plant_gain_and_offset():
     np.testing.assert_allclose(corr.predict(x, 10.0), _plant(step, x, 10.0, gain, bias),
                                atol=1e-6)
     corr.reset()
-    assert not corr.theta.any()
+    assert not corr.estimate.any()
     np.testing.assert_array_equal(corr.predict(x, 10.0), np.asarray(step(x, [10.0, 0])).ravel())
 
 
@@ -74,7 +74,7 @@ def test_update_is_the_per_component_rls_step():
     (gain and bias regressed on the input's one-step effect, forgetting, covariance bound)."""
     step = _model_step()
     corr = InputGainCorrection(step, 0, forgetting=0.9)
-    theta, cov = corr.theta.copy(), corr.cov.copy()
+    theta, cov = corr.estimate.copy(), corr.cov.copy()
     rng = np.random.default_rng(2)
     for _ in range(200):
         x, force = rng.normal(size=2), float(rng.choice([-10.0, 10.0]))
@@ -89,7 +89,7 @@ def test_update_is_the_per_component_rls_step():
             cov[i] = np.clip((cov[i] - np.outer(k, cov[i] @ phi)) / 0.9, -1e3, 1e3)
         theta[:, 0] = np.clip(theta[:, 0], -0.5, 0.5)
         corr.update(x, force, x_next)
-        np.testing.assert_allclose(corr.theta, theta, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(corr.estimate, theta, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(corr.cov, cov, rtol=1e-12, atol=1e-15)
 
 
@@ -116,9 +116,9 @@ def test_lean_term_converges_to_the_plant_stiffness():
     truth = _plant(step, x, 10.0, gain, bias) + stiff * np.sin(x[0] - up)
     np.testing.assert_allclose(corr.predict(x, 10.0), truth, atol=1e-6)
     assert abs(plain.predict(x, 10.0) - truth)[1] > 0.1
-    assert not plain.stiffness.any() and plain.theta.shape == (2, 2)   # off: as before
+    assert not plain.stiffness.any() and plain.estimate.shape == (2, 2)   # off: as before
     corr.reset()
-    assert corr.theta.shape == (2, 3) and not corr.theta.any()
+    assert corr.estimate.shape == (2, 3) and not corr.estimate.any()
 
 
 def test_lean_term_on_a_cart_pendulum_with_stronger_gravity_is_the_hand_derived_one():

@@ -5,10 +5,10 @@ import pytest
 
 from lsindy_cas import systems
 from lsindy_cas.control.ocp import rk4_step
-from lsindy_cas.control.sequence_balancer import SequenceBalancer
-from lsindy_cas.control.upright import (com_speed_step, handover_side, reversal_in_band,
+from lsindy_cas.control.cart_pendulum.sequence_balancer import SequenceBalancer
+from lsindy_cas.control.cart_pendulum.upright import (com_speed_step, handover_side, reversal_in_band,
                                        reversal_margin)
-from lsindy_cas.control.viability import pole_subsystem, upright_jacobians
+from lsindy_cas.control.cart_pendulum.viability import pole_subsystem, upright_jacobians
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant
 

@@ -661,7 +661,7 @@ def test_energy_gap_is_the_hand_derived_pole_energy(model):
     """With the cart at rest H = m_p L^2 thd^2 / 2 - m_p g L cos(theta) (theta from hanging), so
     the gap (H - H_up) / (H_up - H_down) is -1 hanging, 0 upright, -1/2 horizontal, whatever the
     cart's speed; the identified model's own energy gives the same."""
-    from lsindy_cas.control.cart_pendulum import _energy_gap
+    from lsindy_cas.control.cart_pendulum.swingup import _energy_gap
     plant = systems.cart_pendulum(mc=2.0, mp=0.5, L=1.5)
     for m in (plant, model):
         ref = plant if m is plant else systems.cart_pendulum()

@@ -16,9 +16,9 @@ def _recorded_gains(ctrl, x, steps=2):
 
     ctrl.nlp.solve = record
     for _ in range(steps):
-        ctrl.correction.theta[:] = 0.0
-        ctrl.correction.theta[3, 0] = 0.2  # the pole's push estimated 20 % stronger
-        ctrl.correction.theta[2, 0] = -0.1  # the cart's 10 % weaker
+        ctrl.correction.estimate[:] = 0.0
+        ctrl.correction.estimate[3, 0] = 0.2  # the pole's push estimated 20 % stronger
+        ctrl.correction.estimate[2, 0] = -0.1  # the cart's 10 % weaker
         ctrl._last = None  # no update of the estimate from this made-up state
         ctrl(x)
     return gains

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from lsindy_cas import systems
-from lsindy_cas.control.sequence_balancer import SequenceBalancer
-from lsindy_cas.control.upright import peak_between
+from lsindy_cas.control.cart_pendulum.sequence_balancer import SequenceBalancer
+from lsindy_cas.control.cart_pendulum.upright import peak_between
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant
 

@@ -6,7 +6,7 @@ import pytest
 
 from lsindy_cas import systems
 from lsindy_cas.control.ocp import rk4_step
-from lsindy_cas.control.track_guard import TrackGuard
+from lsindy_cas.control.cart_pendulum.track_guard import TrackGuard
 from lsindy_cas.mpc import SwingUpMPC
 from lsindy_cas.paper.swingup import Plant, identify_cart_pendulum, random_starts, run_episode
 

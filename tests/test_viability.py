@@ -1,4 +1,4 @@
-"""The pole's viability kernel at the upright (control/viability.py)."""
+"""The pole's viability kernel at the upright (control/cart_pendulum/viability.py)."""
 
 import itertools
 
@@ -7,7 +7,7 @@ import pytest
 from scipy.linalg import expm
 
 from lsindy_cas import systems
-from lsindy_cas.control.viability import ViabilityKernel, pole_kernel, pole_subsystem
+from lsindy_cas.control.cart_pendulum.viability import ViabilityKernel, pole_kernel, pole_subsystem
 from test_sequence_balancer import assert_exhaustive_optimum
 
 FORCES = (-10.0, 0.0, 10.0)
@@ -153,7 +153,7 @@ def test_sequence_balancer_holds_the_kick_089_linear_plant_from_settled_starts()
     """Closed loop on the exact linearisation of the 0.8/0.2/0.7 plant (kick 0.89 rad/s): from
     settled starts inside the kernel, the sequence balancer with the kernel keeps the pole in
     the success band at every 10 ms sample for 3 s with forces from {-10, 0, 10} only."""
-    from lsindy_cas.control.sequence_balancer import SequenceBalancer
+    from lsindy_cas.control.cart_pendulum.sequence_balancer import SequenceBalancer
     lin, step, (As, Bs), ref = _linear_cart_pendulum(0.8, 0.2, 0.7)
     b = SequenceBalancer(step, lin, np.array(FORCES), cart_index=0, pole_index=1,
                          upright=np.pi, track_limit=2.0, dt=0.05, viability=True)
@@ -177,7 +177,7 @@ def test_search_with_the_kernel_is_still_the_exhaustive_optimum():
     """The kernel terms are non-negative, and the search adds the stage one only to the
     children the rest of the cost leaves alive: without a beam it still returns the best of
     all 3^7 sequences."""
-    from lsindy_cas.control.sequence_balancer import SequenceBalancer
+    from lsindy_cas.control.cart_pendulum.sequence_balancer import SequenceBalancer
     from lsindy_cas.mpc import SwingUpMPC
     system = systems.cart_pendulum(mc=0.8, mp=0.2, L=0.7)
     ctrl = SwingUpMPC(system, balance=False)

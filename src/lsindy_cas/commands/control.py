@@ -76,15 +76,16 @@ def run(args) -> int:
     if args.json:
         check_writable(args.json, "--json")
     out = output_dir(args.out, "--out") if args.out else None
+    plugin = None
+    if args.plugin is not None:
+        from ..control.plugins import available, plugin as make_plugin
+        if args.plugin not in available():         # refused before any work
+            raise ValueError(f"--plugin {args.plugin!r}: known plug-ins are "
+                             f"{', '.join(available())}")
+        plugin = make_plugin(args.plugin)
     task = Task.load(args.task)
     model = LagrangianSINDy.load(args.model)
     task.bind(model.coords_)                       # names checked before anything is built
-    plugin = None
-    if args.plugin is not None:
-        from ..control.plugins import PLUGINS
-        if args.plugin not in PLUGINS:
-            raise ValueError(f"--plugin {args.plugin!r}: known plug-ins are {', '.join(PLUGINS)}")
-        plugin = PLUGINS[args.plugin]()
     ctrl = Controller(model, task, plugin=plugin)
     plant = _plant(args, task, model)
     rng = np.random.default_rng(args.seed)

@@ -6,12 +6,12 @@ The generic core, for any model and any task (nothing in it names a coordinate o
 ``local`` (the stabiliser from the model's linearisation at the target) → ``search`` (beam
 search over the input levels into the goal region, guided by the identified energy) →
 ``controller`` (:class:`Controller`, one object from model + task) → ``episodes`` (closed-loop
-runs and the goal's bookkeeping).  ``plugins`` holds system-specific policies behind a small
-interface.
+runs and the goal's bookkeeping).  The relaxed multiple-shooting MPC (``ocp`` → ``staged`` /
+``shooting`` → ``mpc``, compiled by ``compiled``) turns its relaxed input into levels by
+``rounding`` or ``lookahead``; ``correction`` and ``coefficients`` adapt its predictions online.
 
-The cart-pendulum swing-up (``cart_pendulum.SwingUpMPC``, the ``cart_pendulum`` plug-in) is built
-on the relaxed multiple-shooting MPC of ``ocp``/``shooting``/``mpc`` with its force-choice rules
-(``rounding``, ``lookahead``), balancers and guards.
+``plugins`` holds system-specific policies behind a small interface; the shipped ones are the
+sub-packages that define ``PLUGIN``, kept apart from this core.
 
 Rule: nothing here imports :mod:`lsindy_cas.identify`; a controller takes any object with an
 ``ode()`` (tests check it by reading the imports)."""

@@ -1,7 +1,7 @@
 """The model's own coefficients, re-estimated online from the closed loop (``adapt_model``).
 
 The engine's model is a Lagrangian (and a Rayleigh function) linear in its coefficients,
-``L = sum_j a_j L_j``; a plant that differs from it -- a cart 10 % lighter, a pole 10 % longer --
+``L = sum_j a_j L_j``; a plant that differs from it -- a body 10 % lighter, a link 10 % longer --
 differs in those coefficients only (mass, inertia, coupling, gravity moment).  The online
 correction of :mod:`.correction` fits the one-step prediction errors with a few generic terms
 (input gain, offset, the lean's stiffness), which serve the balancer's linearisation near the
@@ -172,12 +172,12 @@ class CoefficientEstimator:
         self.reset()
 
     #: ``(far, steps)``: the plan keeps the model as given until ``far(x)`` has held for ``steps``
-    #: updates in a row (a stalled swing-up; ``SwingUpMPC(adapt_model="stall")``: the pole 2 rad
-    #: or more from the upright for 3 s), and the estimate after; None: the estimate always
+    #: updates in a row (a stalled swing-up; the shipped swing-up plug-in: the swinging link 2 rad
+    #: or more from its target for 3 s), and the estimate after; None: the estimate always
     stall = None
     #: ``miss(x_prev, x, predicted) -> bool``: with :attr:`stall`, the plan takes up the estimate
     #: also at the first transition this calls a missed approach (``predicted``: the states the
-    #: plan made at ``x_prev`` predicted, or None; :func:`.upright.swing_up_gate`); None: only
+    #: plan made at ``x_prev`` predicted, or None; e.g. the plug-in's ``swing_up_gate``); None: only
     #: the stall
     miss = None
 

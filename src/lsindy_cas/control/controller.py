@@ -45,8 +45,8 @@ class ControllerSettings:
     max_depth : int
         Cap on the plan's samples (a search that enters no region runs them all: 400 samples
         take ~0.4 s on the Furuta pendulum).  Plans into the region took 60-73 samples on the
-        Acrobot, 270-400 on the Furuta pendulum at 0.01 s and 45-90 on the double pendulum on a
-        cart.
+        Acrobot, 270-400 on the Furuta pendulum at 0.01 s and 45-90 on gymnasium's
+        InvertedDoublePendulum.
     width : int
         Partial input sequences the search keeps per sample.
     cells : int
@@ -85,7 +85,7 @@ class ControllerSettings:
         For a target goal the search restarts from the measured state at every call, with
         this many samples, and applies its best partial sequence's first input until one
         enters the local policy's region (then that plan is kept while it still does): plans
-        into the region of the double pendulum on a cart missed it again after one sample
+        into the region of gymnasium's InvertedDoublePendulum missed it again after one sample
         (their closest approach 5-100 times the region's level), and finishing them over
         several calls held 15-17 of 20 swing-ups where restarting held 19-20.  24 samples:
         20/20 held (16: 19/20, 12: 8/20).  None: as for ``budget``.

@@ -11,10 +11,10 @@ over one interval, so ``gain`` scales it (a plant whose push is 20 % stronger ha
 ``gain = 0.2``) and ``bias`` absorbs what does not depend on the input.  The controller owns one
 instance and hands it to whatever predicts with it (its lookahead, the balancer).
 
-With ``lean=(pole_index, upright)`` a third term, ``stiffness_i * sin(x_prev[pole_index] -
-upright)``, fits what gravity's torque does differently on the plant (a pole 10 % shorter turns
-over 10 % faster): near the upright the offset cannot follow it, as the lean changes sign with
-every push.  ``SwingUpMPC`` turns it on where its sequence balancer balances.
+With ``lean=(index, reference)`` a third term, ``stiffness_i * sin(x_prev[index] -
+reference)``, fits what gravity's torque does differently on the plant near an unstable
+equilibrium of an angle (a link 10 % shorter turns over 10 % faster): near it the offset cannot
+follow, as the lean changes sign with every push.  A plug-in turns it on where it balances.
 """
 
 from __future__ import annotations
@@ -41,16 +41,16 @@ class InputGainCorrection:
     max_gain : float
         Bound on ``|gain|``.
     lean : tuple, optional
-        ``(pole_index, upright)``: also fit ``stiffness`` on the sine of the pole's lean from
-        the upright (module docstring).  None: gain and offset only.
+        ``(index, reference)``: also fit ``stiffness`` on the sine of that angle's lean from
+        the reference (module docstring).  None: gain and offset only.
 
     Attributes
     ----------
-    theta : ndarray, shape (n_state, p)
+    estimate : ndarray, shape (n_state, p)
         Per state component, the estimate ``[gain, bias]`` (p = 2), with ``lean``
         ``[gain, bias, stiffness]`` (p = 3).
     cov : ndarray, shape (n_state, p, p)
-        Per state component, the RLS covariance of ``theta``.
+        Per state component, the RLS covariance of ``estimate``.
     """
 
     #: initial covariance of ``[gain, bias]``: a prior that the model is right
@@ -70,12 +70,12 @@ class InputGainCorrection:
         if not 0 < self.forgetting <= 1:
             raise ValueError(f"forgetting must be in (0, 1], got {forgetting!r}.")
         self.max_gain = check_real("max_gain", max_gain, nonnegative=True)
-        #: None, or ``(pole_index, upright)``: a third regressor, the sine of the pole's lean
-        #: from the upright, fits model error in gravity's torque (e.g. the pole's length)
+        #: None, or ``(index, reference)``: a third regressor, the sine of that angle's lean
+        #: from the reference, fits model error in gravity's torque (e.g. a link's length)
         self.lean = None
         if lean is not None:
             if not isinstance(lean, (tuple, list)) or len(lean) != 2:
-                raise TypeError(f"lean must be None or (pole_index, upright), got {lean!r}.")
+                raise TypeError(f"lean must be None or (index, reference), got {lean!r}.")
             self.lean = (check_int("lean[0]", lean[0], low=0, high=self.n_state - 1),
                          check_real("lean[1]", lean[1]))
         self.reset()
@@ -83,24 +83,24 @@ class InputGainCorrection:
     def reset(self):
         """Back to no correction (``gain = bias = 0``) and the prior covariance."""
         prior = self.PRIOR + ((self.LEAN_PRIOR,) if self.lean is not None else ())
-        self.theta = np.zeros((self.n_state, len(prior)))
+        self.estimate = np.zeros((self.n_state, len(prior)))
         self.cov = np.tile(np.diag(prior), (self.n_state, 1, 1))
 
     @property
     def gain(self):
         """Input-gain error per state component, shape (n_state,)."""
-        return self.theta[:, 0]
+        return self.estimate[:, 0]
 
     @property
     def bias(self):
         """Offset per state component, shape (n_state,)."""
-        return self.theta[:, 1]
+        return self.estimate[:, 1]
 
     @property
     def stiffness(self):
-        """Per state component, the coefficient of the sine of the pole's lean (zeros without
+        """Per state component, the coefficient of the sine of the lean (zeros without
         ``lean``), shape (n_state,)."""
-        return self.theta[:, 2] if self.lean is not None else np.zeros(self.n_state)
+        return self.estimate[:, 2] if self.lean is not None else np.zeros(self.n_state)
 
     def _sin_lean(self, x):
         return float(np.sin(x[self.lean[0]] - self.lean[1]))
@@ -147,8 +147,8 @@ class InputGainCorrection:
         phi = np.stack(cols, axis=1)                                        # (n_state, p)
         Pphi = np.matmul(self.cov, phi[:, :, None])[:, :, 0]
         k = Pphi / (lam + np.matmul(phi[:, None, :], Pphi[:, :, None])[:, 0, 0])[:, None]
-        innovation = err - np.matmul(phi[:, None, :], self.theta[:, :, None])[:, 0, 0]
-        self.theta += k * innovation[:, None]
+        innovation = err - np.matmul(phi[:, None, :], self.estimate[:, :, None])[:, 0, 0]
+        self.estimate += k * innovation[:, None]
         self.cov = (self.cov - k[:, :, None] * Pphi[:, None, :]) / lam
         np.clip(self.cov, -self.COV_BOUND, self.COV_BOUND, out=self.cov)
-        np.clip(self.theta[:, 0], -self.max_gain, self.max_gain, out=self.theta[:, 0])
+        np.clip(self.estimate[:, 0], -self.max_gain, self.max_gain, out=self.estimate[:, 0])

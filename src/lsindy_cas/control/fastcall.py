@@ -2,7 +2,7 @@
 
 ``f(x, u)`` on numpy arrays converts every argument to a ``DM`` and every result back, which
 costs about 0.1 ms per call on a 2-core machine; the evaluation of a one-step RK4 map of a
-cart-pendulum (176 instructions) takes about 2 microseconds.  A controller step near the
+two-coordinate model's ODE (176 instructions) takes about 2 microseconds.  A controller step near the
 upright calls such functions a few times (the online correction, the track guard), so the
 conversions were a fifth of the median control step.  :class:`NumericFunction` evaluates
 through CasADi's buffer interface (``Function.buffer``, CasADi >= 3.5.1): preallocated numpy

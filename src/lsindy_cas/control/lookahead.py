@@ -1,8 +1,8 @@
 """Finite-set lookahead: choose the applied level by enumerating short discrete input sequences.
 
 Rounding only the first relaxed input (nearest level, or sum-up rounding) ignores when a
-coarse discrete input can be applied without overshooting: balancing a pole with ±10 N held for
-50 ms, each push changes the pole rate by about 0.5 rad/s whatever the relaxed solution wanted.
+coarse discrete input can be applied without overshooting: balancing an inverted pendulum with
+±10 N held for 50 ms, each push changes its rate by about 0.5 rad/s whatever the relaxed solution wanted.
 This strategy enumerates all ``n_levels**depth`` discrete sequences for the first ``depth``
 control intervals, simulates each with the model's discrete dynamics (a tree of ``F``
 evaluations, one CasADi call), and scores it with the stage costs plus a quadratic model of the

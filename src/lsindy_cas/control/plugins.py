@@ -3,66 +3,37 @@
 A plug-in is an object with ``build(model, task, controller) -> policy``; the policy has
 ``reset()`` and ``__call__(x) -> inputs`` (one per task input).  The controller validates the
 task and the model as always, then hands the states to the policy; its :meth:`reached` stays the
-task's goal test.  ``PLUGINS`` names the plug-ins the command line offers (``--plugin NAME``).
+task's goal test.
 
-``cart_pendulum``: the cart-pendulum swing-up controller
-(:class:`~.cart_pendulum.SwingUpMPC`: relaxed MPC with pulse and sequence balancers, track guard
-and coefficient estimate), built from the task's level set, sample time, target angle and
-track.  It is kept because on the paper's cart-pendulum the generic beam search runs into the
-±2 m track (docs/control.md gives the measurement).
+The plug-ins shipped with the package are the sub-packages of :mod:`lsindy_cas.control` that
+define ``PLUGIN`` (a class whose instances are plug-ins; its ``name`` is the sub-package's):
+:func:`available` lists them, :func:`plugin` builds one by name (the command line's
+``--plugin NAME``).  Nothing in the generic core names one.
 """
 from __future__ import annotations
 
-import numpy as np
+import importlib
+import pkgutil
 
-__all__ = ["CartPendulumPlugin", "PLUGINS"]
+__all__ = ["available", "plugin"]
 
 
-class CartPendulumPlugin:
-    """The cart-pendulum swing-up (:class:`~.cart_pendulum.SwingUpMPC`) as a plug-in.
+def available() -> list:
+    """Names of the shipped plug-ins (sub-packages of ``lsindy_cas.control`` with ``PLUGIN``)."""
+    from . import __path__ as here
+    return sorted(m.name for m in pkgutil.iter_modules(here) if m.ispkg and "PLUGIN" in
+                  getattr(importlib.import_module(f"{__package__}.{m.name}"), "__all__", ()))
 
-    The task must have one discrete input on one of the model's two coordinates (the cart),
-    a target on the other (the pole's upright angle) and limits on the cart (the track,
-    symmetric about 0).  Extra keyword arguments go to ``SwingUpMPC``.
+
+def plugin(name: str, **options):
+    """The shipped plug-in ``name`` built with ``options``.
+
+    Raises
+    ------
+    ValueError
+        No shipped plug-in has that name (the message lists those there are).
     """
-
-    name = "cart_pendulum"
-
-    def __init__(self, **options):
-        self.options = options
-
-    def build(self, model, task, controller):
-        from .cart_pendulum import SwingUpMPC
-        b = controller.bound
-        coords = list(b.coords.names)
-        if len(coords) != 2 or len(task.inputs) != 1:
-            raise ValueError("the cart_pendulum plug-in needs a model with two coordinates "
-                             "(cart, pole) and one input (the force on the cart)")
-        (cart, spec), = task.inputs.items()
-        if not spec.discrete:
-            raise ValueError("the cart_pendulum plug-in needs a level set (levels = [...])")
-        pole = coords[1 - coords.index(cart)]
-        if b.target is None:
-            raise ValueError("the cart_pendulum plug-in needs a target goal (the upright angle)")
-        ic = coords.index(cart)
-        lo, hi = b.lower[ic], b.upper[ic]
-        if not (np.isfinite(lo) and np.isfinite(hi) and np.isclose(lo, -hi)):
-            raise ValueError(f"the cart_pendulum plug-in needs a symmetric track: limits.{cart} "
-                             "= [-L, L]")
-        return _Policy(SwingUpMPC(model, spec.levels, dt=task.dt, track_limit=float(hi),
-                                  upright=float(b.target[coords.index(pole)]), actuated=cart,
-                                  **self.options))
-
-
-class _Policy:
-    def __init__(self, mpc):
-        self.mpc = mpc
-
-    def reset(self):
-        self.mpc.reset()
-
-    def __call__(self, x):
-        return np.array([float(self.mpc(x))])
-
-
-PLUGINS = {CartPendulumPlugin.name: CartPendulumPlugin}
+    names = available()
+    if name not in names:
+        raise ValueError(f"unknown plug-in {name!r}: known plug-ins are {', '.join(names)}")
+    return importlib.import_module(f"{__package__}.{name}").PLUGIN(**options)

@@ -34,7 +34,7 @@ CONVERGED_VIOLATION = 10.0
 #: largest shooting gap (state units) of a guess handed to fatrop (see ``_usable_guess``)
 GUESS_GAP = 1e6
 #: seconds a fatrop solve may take before it is abandoned (see ``MultipleShootingNLP.solve``);
-#: the slowest seen: 0.34 s (300 iterations from a spinning pole, not compiled, loaded machine)
+#: the slowest seen: 0.34 s (300 iterations from a fast spin, not compiled, loaded machine)
 WATCHDOG_SECONDS = 5.0
 
 
@@ -137,7 +137,7 @@ class MultipleShootingNLP:
         x_init = sym.sym("x0", n_state)
         # the online correction's input gain (0: the model as identified): u -> (1 + gain) u
         gain = sym.sym("gain")
-        # the state the costs are measured from (0: the residuals as given; e.g. a cart target)
+        # the state the costs are measured from (0: the residuals as given; e.g. a target position)
         ref = sym.sym("ref", n_state)
         # the model's coefficients (adapt_model: the online estimate), if the OCP has them
         coef = sym.sym("coef", 0 if ocp.param_ode is None else ocp.param_values.size)

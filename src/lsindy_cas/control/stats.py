@@ -44,9 +44,8 @@ class MPCStats:
         Episodes in which :class:`~lsindy_cas.mpc.SwingUpMPC` switched from the pulse to the
         sequence balancer (the online estimate of the push reached ``SEQUENCE_KICK``).
     n_guard : int
-        Steps whose force a track guard replaced
-        (:class:`~lsindy_cas.control.track_guard.TrackGuard`: the cart could otherwise not be
-        stopped inside the track).
+        Steps whose input a plug-in's guard replaced (its prediction of the chosen input
+        left the state limits).
     iterations : list of int
         Solver iterations per solve.
     solve_kinds : list of str

@@ -21,7 +21,7 @@ __all__ = ["ControlledSystem", "MAX_SUBSTEP"]
 MAX_SUBSTEP = 0.01
 # The swing-up search may take longer substeps: the fewest whose map is within SEARCH_TOL of the
 # fine one (relative to the sample's largest change of each state).  1e-6: a tenth of the
-# identified double pendulum on a cart's own one-sample error against MuJoCo (1.3e-5 at most
+# identified InvertedDoublePendulum's own one-sample error against MuJoCo (1.3e-5 at most
 # along swing-ups, same measure); it keeps that system's 5 substeps and gives the Acrobot 9 of 20.
 SEARCH_TOL = 1e-6
 
@@ -103,7 +103,7 @@ class ControlledSystem:
 
     def _angles(self, rng, n_coords):
         """Angles: coordinates H depends on and is 2π-periodic in.  Cyclic coordinates: those H
-        does not depend on at all (a cart's position, a Furuta arm's angle): shifting them
+        does not depend on at all (a carriage's position, a Furuta arm's angle): shifting them
         changes nothing in the dynamics."""
         X = self._samples(rng)
         E = self._energy_rows(X)

@@ -41,7 +41,7 @@ import casadi as ca
 import numpy as np
 from scipy.linalg import expm
 
-from .._validate import check_int, check_real
+from ..._validate import check_int, check_real
 
 __all__ = ["BAND", "ViabilityKernel", "kernel_schedule", "pole_kernel", "pole_subsystem"]
 

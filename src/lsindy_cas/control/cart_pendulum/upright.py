@@ -6,7 +6,7 @@ upright) theta_dot`` (``k = m_p l / (m_c + m_p)``, read off the model's upright 
 as ``a_x / omega2``) changes only by multiples of ``dw = F dt / (m_c + m_p)``: its *phase*
 ``(w / dw) mod 1`` is the start's for the whole episode, whatever the controller does.  Where
 the pole cannot turn around inside the success band
-(:attr:`~lsindy_cas.control.sequence_balancer.SequenceBalancer.turnaround` False) the balancing
+(:attr:`~lsindy_cas.control.cart_pendulum.sequence_balancer.SequenceBalancer.turnaround` False) the balancing
 pushes must alternate, so ``w`` takes only two values, ``dw (n + phase)`` and ``dw (n + 1 +
 phase)``; the cart can stand still on average only if they straddle zero with shares of time
 the band allows (phase near 0.5).  From the other phases it creeps, one way more slowly than
@@ -27,7 +27,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .mpc import wrap_angle
+from ..mpc import wrap_angle
 
 __all__ = ["cart_urgency", "com_speed_step", "escape_lean", "find_upright", "handover_side",
            "peak_between", "reversal_in_band", "reversal_margin", "slow_cart", "step_kick",
@@ -89,7 +89,7 @@ def step_kick(step, cart_index, pole_index, upright, levels):
 def upright_kick(ode, cart_index, pole_index, upright, dt, n_substeps, force_set):
     """:meth:`SwingUpMPC.kick` before the controller exists (0.0 if the arguments are bad:
     they are checked, with a clear error, when the controller is built)."""
-    from ..mechanics.rk4 import rk4_step
+    from ...mechanics.rk4 import rk4_step
     try:
         step = rk4_step(ode, 4, 2, float(dt), int(n_substeps))
         return step_kick(step, cart_index, pole_index, upright, force_set)
@@ -114,7 +114,7 @@ def com_speed_step(A, b, cart_index, pole_index, force):
 def handover_side(balancer, x, window=0.25):
     """Side of the track (+1, -1) to hand the pole over on from state ``x``, or 0.
 
-    ``balancer``: a :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer` (its
+    ``balancer``: a :class:`~lsindy_cas.control.cart_pendulum.sequence_balancer.SequenceBalancer` (its
     upright linearisation, indices and levels).  0 where the phase of the centre of mass's speed
     is within ``window`` of 0.5 (the cart can stand still); otherwise the side the slower of the
     two creeps leaves from: +1 for phases below 0.5 (the slow creep is towards -x), -1 above.
@@ -216,7 +216,7 @@ def reversal_margin(balancer, angle=0.1, rate=0.5, periods=20, substeps=5, full=
     pushes taken as instantaneous, the second comes at ``|phi| >= (kick - rate) / omega``
     (``turn_lean`` for the success band's rate); a push held over its period, with gravity,
     moves that line a little.  Computed exactly on the pole's part of ``balancer``'s upright
-    linearisation (a :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer`; its
+    linearisation (a :class:`~lsindy_cas.control.cart_pendulum.sequence_balancer.SequenceBalancer`; its
     continuous pole block, the push held over each period as on the plant): for each number of
     idle periods between the pushes every state on the way is linear in the start, so the best
     start is a linear program in three unknowns (HiGHS).

@@ -22,7 +22,7 @@ with the band excess of the pole angle, pole rate and cart position as in :class
 diagonal ``state_weights`` (plus ``cart_weight`` on the cart), ``P`` its DARE value on the
 linearisation, ``p``, ``v0``, ``P_c`` the cart's slow subsystem and its value (below), and
 ``peak_k`` the pole's lean where its rate turns round between samples k-1 and k (0 if it does
-not; :func:`~lsindy_cas.control.upright.turn_excess`): success is judged between them too.
+not; :func:`~lsindy_cas.control.cart_pendulum.upright.turn_excess`): success is judged between them too.
 The ``success_weight`` terms (on where :attr:`turnaround`) price leaving the success band itself
 (``c``: the angle and the rate, ``success`` = (0.1 rad, 0.5 rad/s); and the turn's peak) linearly:
 the planning bands' squared excesses alone let a plan keep a rate 0.04 rad/s inside its band at
@@ -38,7 +38,7 @@ proven optimal and :attr:`proven` is False.  Otherwise the returned first level 
 optimal sequence over all ``len(levels)^horizon``.
 
 The cart: its slow subsystem ``(p, v0)``, which the pushes do not move and the pole's lean
-drives as a double integrator (:func:`~lsindy_cas.control.upright.slow_cart`), has an LQR value
+drives as a double integrator (:func:`~lsindy_cas.control.cart_pendulum.upright.slow_cart`), has an LQR value
 (lean as the input, closed-loop frequency ``centre_frequency``) that, times ``centre_weight``,
 is added to the terminal cost, and ``centre_weight * dt * p^2`` to the stage cost: over a horizon
 of well under a second this is what makes the plan lean the pole so that the cart drifts back
@@ -46,13 +46,13 @@ to the centre (the DARE value of the full linearisation, computed for a continuo
 does not: it expects the cart to be returned by force).
 
 The escape term (on only where :attr:`turnaround` is False) penalises the lean ``phi*`` where a
-push first keeps the rate in the band (:func:`~lsindy_cas.control.upright.escape_lean`) beyond
+push first keeps the rate in the band (:func:`~lsindy_cas.control.cart_pendulum.upright.escape_lean`) beyond
 the angle band, so the plan avoids parking the pole at rest on top (the hover) where leaving it
 costs a band touch (docs/swingup.md).
 
 Viability: on the upright linearisation without cart friction the pole ``(phi, theta_dot)``
 does not depend on the cart, so whether it can be kept in the success band for ever has an exact
-answer, the min-max value ``J`` of :class:`~lsindy_cas.control.viability.ViabilityKernel` (``J <=
+answer, the min-max value ``J`` of :class:`~lsindy_cas.control.cart_pendulum.viability.ViabilityKernel` (``J <=
 0``: viable) on the model's own linearisation.  With ``viability=True`` the plan's end pays ``w *
 max(0, J + viability_margin * m*)^2`` and every predicted state ``viability_stage`` times the same
 with ``viability_stage_margin`` (``m*`` the best margin the plant allows, ``w = viability_weight *
@@ -74,9 +74,9 @@ import time
 
 import numpy as np
 
-from .._validate import check_bool, check_int, check_real
+from ..._validate import check_bool, check_int, check_real
 from .balancer import PulseBalancer
-from .mpc import wrap_angle
+from ..mpc import wrap_angle
 from .upright import cart_urgency, escape_lean, slow_cart, turn_excess
 from .viability import BAND, kernel_schedule
 
@@ -89,7 +89,7 @@ class SequenceBalancer(PulseBalancer):
     Parameters
     ----------
     step, ode, levels, cart_index, pole_index, upright, track_limit, dt
-        As for :class:`~lsindy_cas.control.balancer.PulseBalancer`.
+        As for :class:`~lsindy_cas.control.cart_pendulum.balancer.PulseBalancer`.
     horizon : int
         Planned intervals ``N`` (1.4 s sees a hover's exit; a horizon of 16 lost 9 of 180 more).
     max_frontier : int
@@ -120,7 +120,7 @@ class SequenceBalancer(PulseBalancer):
         :attr:`turnaround` is False, else 0 (off).
     viability : bool
         Penalise predicted pole states outside the pole's viability kernel
-        (:mod:`lsindy_cas.control.viability`, built from the model's upright linearisation),
+        (:mod:`lsindy_cas.control.cart_pendulum.viability`, built from the model's upright linearisation),
         held with a margin (module docstring, "viability").
     viability_weight : float
         Factor (times ``violation_weight``) on the squared kernel excess.
@@ -289,7 +289,7 @@ class SequenceBalancer(PulseBalancer):
 
     def _between(self, prev, z, reps=1):
         """Band excess cost of the pole's turn inside the interval from each state of ``prev``
-        to its ``reps`` successors in ``z`` (:func:`~lsindy_cas.control.upright.turn_excess`)."""
+        to its ``reps`` successors in ``z`` (:func:`~lsindy_cas.control.cart_pendulum.upright.turn_excess`)."""
         if self.between_weight == 0.0:
             return 0.0
         low = min(self.angle_band, BAND[0])  # the turn's excess over both bands in one call
@@ -328,14 +328,14 @@ class SequenceBalancer(PulseBalancer):
         return self._kernel_w * over * over
 
     def cart_urgency(self, e):
-        """:func:`~lsindy_cas.control.upright.cart_urgency` of error state ``e`` (4,), braking by
+        """:func:`~lsindy_cas.control.cart_pendulum.upright.cart_urgency` of error state ``e`` (4,), braking by
         leaning ``brake_fraction * max_lean``."""
         return cart_urgency(e, self.ic, self.ip, self.ratio, self.brake_fraction
                             * abs(self.kappa) * self.max_lean, self.track_limit - self.track_margin)
 
     def _escape(self, z):
         """``escape_weight`` times a band violation: the squared excess over ``angle_band`` of
-        :func:`~lsindy_cas.control.upright.escape_lean` (rate ``kick - rate_band``)."""
+        :func:`~lsindy_cas.control.cart_pendulum.upright.escape_lean` (rate ``kick - rate_band``)."""
         if self.escape_weight == 0.0 or self.omega2 <= 0.0:
             return 0.0
         over = escape_lean(z[:, self.ip], z[:, 2 + self.ip], self.escape_rate, self.omega2)

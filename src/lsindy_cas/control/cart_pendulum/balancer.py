@@ -44,8 +44,8 @@ import math
 import casadi as ca
 import numpy as np
 
-from .._validate import check_int, check_real
-from .mpc import wrap_angle
+from ..._validate import check_int, check_real
+from ..mpc import wrap_angle
 
 __all__ = ["PulseBalancer"]
 

@@ -1,7 +1,7 @@
 """Whether a cart-pendulum can be balanced in the success band *and* kept on its track: a 4-D
 viability kernel on the upright linearisation.
 
-:class:`~lsindy_cas.control.viability.ViabilityKernel` answers the question for the pole alone,
+:class:`~lsindy_cas.control.cart_pendulum.viability.ViabilityKernel` answers the question for the pole alone,
 ``(phi, omega)``; it cannot see the cart, and a plant whose pole can be held for ever may still
 run its cart off the track: stopping a drifting cart needs a lean, and a lean costs margin in a
 band that is barely one push wide.  This module answers the joint question on the model's
@@ -41,7 +41,7 @@ import time
 import numpy as np
 from scipy.linalg import expm
 
-from .._validate import check_int, check_real
+from ..._validate import check_int, check_real
 from .viability import check_system, min_max_value, upright_jacobians
 
 __all__ = ["CartPoleKernel", "cart_pole_kernel"]
@@ -206,7 +206,7 @@ class CartPoleKernel:
 def cart_pole_kernel(ode, cart_index, pole_index, upright, dt, levels, **options):
     """:class:`CartPoleKernel` of a cart-pendulum ODE at the upright.
 
-    The arguments are those of :func:`~lsindy_cas.control.viability.pole_kernel` (the ODE
+    The arguments are those of :func:`~lsindy_cas.control.cart_pendulum.viability.pole_kernel` (the ODE
     ``(x (4,), u (2,)) -> xdot``, the cart's and the pole's positions in ``q``, the upright angle,
     the control period and the admissible cart forces); ``options`` go to
     :class:`CartPoleKernel`.

@@ -24,8 +24,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .._validate import check_real
-from .fastcall import NumericFunction
+from ..._validate import check_real
+from ..fastcall import NumericFunction
 
 __all__ = ["TrackGuard", "check_guard_option"]
 

@@ -11,8 +11,8 @@ level, summing to 1), by SQP with HPIPM QPs, then picks one admissible level (by
 lookahead over all discrete sequences of a few intervals, scored against the relaxed plan's
 cost-to-go; or sum-up rounding carried across steps; or plain rounding).  A failed solve falls
 back to the shifted previous plan, is counted in ``stats``, and the next step re-solves with
-fatrop (IPOPT without it).  Near the upright a balancer (:mod:`~lsindy_cas.control.balancer`,
-:mod:`~lsindy_cas.control.sequence_balancer`) plans with the discrete pushes themselves.
+fatrop (IPOPT without it).  Near the upright a balancer (:mod:`~lsindy_cas.control.cart_pendulum.balancer`,
+:mod:`~lsindy_cas.control.cart_pendulum.sequence_balancer`) plans with the discrete pushes themselves.
 
 Example
 -------
@@ -25,10 +25,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .._validate import check_choice, check_real, relative_energy
-from .mpc import DiscreteInputMPC, MPCStats
+from ..._validate import check_choice, check_real, relative_energy
+from ..mpc import DiscreteInputMPC, MPCStats
 from .balancer import PulseBalancer
-from .coefficients import resolve_adapt_model
+from ..coefficients import resolve_adapt_model
 from .sequence_balancer import SequenceBalancer
 from .track_guard import TrackGuard, check_guard_option
 from .upright import find_upright, handover_side, step_kick, swing_up_gate, upright_kick
@@ -40,7 +40,7 @@ def _energy_gap(model, coords, cart_index, pole_index, upright):
     """``casadi.Function`` x (4,) -> ``(H - H_up) / (H_up - H_down)`` from the model's own energy
     (``hamiltonian_`` of a fitted model, ``hamiltonian`` of a system) with the cart at rest: -1
     hanging still, 0 upright and still."""
-    from ..symbolic.coords import Coordinates
+    from ...symbolic.coords import Coordinates
     H = getattr(model, "hamiltonian_", None)
     H = getattr(model, "hamiltonian", None) if H is None else H
     if H is None:
@@ -139,13 +139,13 @@ class SwingUpMPC(DiscreteInputMPC):
         for a model without an energy or with one the same hanging and upright (given
         explicitly with such a model: ``TypeError`` or ``ValueError``).
     balance : bool or dict
-        Near the upright, choose the force with :class:`~lsindy_cas.control.balancer.PulseBalancer`
+        Near the upright, choose the force with :class:`~lsindy_cas.control.cart_pendulum.balancer.PulseBalancer`
         (an enumerated MPC over the push sequences themselves, on the model linearised at the
         upright) instead of from the relaxed plan; a dict passes options to it (``horizon``,
         ``max_pushes``, ``rate_band``, ``angle_band``, ``region``, ``max_lean``,
         ``cart_frequency``, ``cart_damping``, ``lean_weight``, ``push_weight``,
         ``mode_weight``, ``track_weight``, ``brake_fraction``); ``{"method": "sequence"}``
-        uses :class:`~lsindy_cas.control.sequence_balancer.SequenceBalancer` instead (branch
+        uses :class:`~lsindy_cas.control.cart_pendulum.sequence_balancer.SequenceBalancer` instead (branch
         and bound over all level sequences, for plants whose push is nearly as large as the
         band; its own options ``max_frontier``, ``violation_weight``, ``state_weights``,
         ``centre_weight``, ... are accepted then); a dict without ``"method"`` means the
@@ -156,7 +156,7 @@ class SwingUpMPC(DiscreteInputMPC):
         only if ``force_set`` contains 0 (a dict without 0 in the set is an error).
     guard : bool or dict
         Keep the cart on the track whatever the controller chose
-        (:class:`~lsindy_cas.control.track_guard.TrackGuard`): where the model predicts that
+        (:class:`~lsindy_cas.control.cart_pendulum.track_guard.TrackGuard`): where the model predicts that
         the chosen force followed by its stopping policy could not keep the cart inside
         ``track_limit``, apply the level that reaches least far (counted in
         ``stats.n_guard``); a dict passes ``margin``, ``factor``, ``horizon`` to it.  ``False``
@@ -164,7 +164,7 @@ class SwingUpMPC(DiscreteInputMPC):
     handover : float, optional
         Distance (m) from the track's centre at which the swing-up is to hand the pole to the
         sequence balancer, on the side the cart's slower creep leaves from
-        (:func:`~lsindy_cas.control.upright.handover_side`, decided at the first step after
+        (:func:`~lsindy_cas.control.cart_pendulum.upright.handover_side`, decided at the first step after
         :meth:`reset`; the swing-up's costs are measured from there, :attr:`reference`).
         None: :attr:`HANDOVER_OFFSET` where gravity turns the pole round only beyond the
         balancer's angle band (its ``turn_lean > angle_band``), else 0 (the centre).
