@@ -26,6 +26,7 @@ import numpy as np
 from .._validate import check_state
 from .compiled import resolve_jit
 from .local import LocalPolicy, equilibrium_input
+from .nlp_planner import NLPPlanner, NLPSettings, check_nlp_task
 from .search import BeamSearch, maybe_compiled
 from .system import ControlledSystem
 from .task import Task
@@ -94,6 +95,12 @@ class ControllerSettings:
     jit : bool or None
         Compile the search's model map to C (None: where gcc is, or as ``$LSINDY_JIT`` says;
         :func:`~.compiled.resolve_jit`).
+    planner : {"beam", "nlp"}
+        What drives the state into the local policy's region: the beam search above, or the
+        relaxed multiple-shooting NLP with energy shaping (:mod:`~.nlp_planner`; a target goal
+        with one input).
+    nlp : NLPSettings or None
+        The NLP planner's settings (None: its defaults).
     """
 
     horizon: float = 20.0
@@ -109,9 +116,14 @@ class ControllerSettings:
     replan_budget: int | None = 24
     seed: int = 0
     jit: bool | None = None
+    planner: str = "beam"
+    nlp: NLPSettings | None = None
 
     def __post_init__(self):
-        from .._validate import check_int, check_real
+        from .._validate import check_choice, check_int, check_real
+        check_choice("planner", self.planner, ("beam", "nlp"))
+        if self.nlp is not None and not isinstance(self.nlp, NLPSettings):
+            raise TypeError(f"nlp must be NLPSettings or None, got {type(self.nlp).__name__}")
         check_real("horizon", self.horizon, positive=True)
         check_int("width", self.width, low=1)
         check_int("max_depth", self.max_depth, low=1)
@@ -158,6 +170,8 @@ class Controller:
         if not coords:
             raise TypeError("model must be a fitted LagrangianSINDy (or a system with coords)")
         self.bound = task.bind(coords)
+        if self.settings.planner == "nlp" and plugin is None:
+            check_nlp_task(self.bound)             # before anything heavy is built
         rng = np.random.default_rng(self.settings.seed)
         self.system = sys_ = ControlledSystem(model, self.bound, rng)
         self.candidates = np.array(list(itertools.product(
@@ -180,6 +194,11 @@ class Controller:
             self._build_target(rng)
         else:
             self._build_reach(rng)
+        if self.settings.planner == "nlp":
+            self.search = NLPPlanner(sys_, self.bound, self.energy_scale, self.target_energy,
+                                     self.settings.nlp or NLPSettings(), jit)
+            self.reset()
+            return
         depth = min(self.settings.max_depth,
                     max(1, int(np.ceil(self.settings.horizon / task.dt - 1e-9))))
         self.search = BeamSearch(sys_.search_step, self.candidates, depth, self.settings.width,
@@ -336,6 +355,8 @@ class Controller:
             if self._local_mode:
                 self.search.reset()
                 return self.local(x)
+        if self.settings.planner == "nlp":
+            return self.search(x)
         i = self.search(x)
         if i is None:
             return self._least_violation(x)
