@@ -142,6 +142,34 @@ def test_scouts_get_the_scout_budget_and_the_chosen_k_the_whole_limit(rng, monke
     assert not auto.steps[0].search.proven or auto.steps[0].k == auto.k
 
 
+def test_effort_scales_the_scan_budgets(rng, monkeypatch):
+    """``effort`` multiplies the scouts' work limit (and the scan's), nothing else; a bad effort
+    is refused before any work."""
+    bal = _synthetic(rng)
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+    real, calls = selection.branch_and_bound, []
+
+    def spy(*args, work_limit=None, **kw):
+        calls.append(work_limit)
+        return real(*args, work_limit=work_limit, **kw)
+
+    monkeypatch.setattr(selection, "branch_and_bound", spy)
+    plain = select(bal, [])
+    first = calls[0]
+    calls.clear()
+    more = select(bal, [], effort=4.0)
+    assert first == selection.SCOUT_WORK and calls[0] == 4.0 * selection.SCOUT_WORK
+    assert more.support == plain.support and more.k == plain.k
+
+
+@pytest.mark.parametrize("effort", [0.0, -1.0, float("nan"), "2"])
+def test_a_bad_effort_is_refused(effort):
+    from lsindy_cas import LagrangianSINDy, Library
+    lib = Library(["x"], ["x_dot**2", "x**2"])
+    with pytest.raises((ValueError, TypeError), match="effort"):
+        LagrangianSINDy(lib, effort=effort)._validate()
+
+
 def test_a_k_whose_beam_finds_nothing_gets_a_scout_not_a_gap(rng, monkeypatch):
     """Automatic k: when no one-term extension of the smaller models is admissible, that k is
     searched by a branch-and-bound scout instead of being skipped — every k up to the chosen one

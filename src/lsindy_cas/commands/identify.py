@@ -37,6 +37,8 @@ def run(args) -> int:
             raise ValueError(f"{flag} must be a positive integer, got {value}")
     if args.time_limit is not None and not 0 < args.time_limit < float("inf"):   # and nan
         raise ValueError(f"--time-limit must be positive (seconds), got {args.time_limit}")
+    if not 0 < args.effort < float("inf"):                                         # and nan
+        raise ValueError(f"--effort must be a positive number, got {args.effort}")
     if args.json:
         check_writable(args.json, "--json")
     if args.workers is not None and args.workers < 1:
@@ -72,7 +74,7 @@ def run(args) -> int:
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=split(args.prior), form=args.form,
                             window=args.window, smoothing=args.smoothing,
                             max_terms=args.max_terms, hold=args.hold, dissipation=dissipation,
-                            time_limit=args.time_limit)
+                            time_limit=args.time_limit, effort=args.effort)
     from ..progress import ProgressBar
     from ..identify.selection import UndeterminedError
     try:
@@ -173,7 +175,11 @@ def add_to(sub) -> None:
                        help="branch and bound (libraries too large to score every support): stop "
                        "each search after SECONDS with the best admissible support found, marked "
                        "not proven with its optimality gap (Ctrl-C does the same); with automatic "
-                       "k, the k chosen (the scan's other searches stop after at most 5 s)")
+                       "k, every search of the scan")
+    ident.add_argument("--effort", type=float, default=1.0, metavar="X",
+                       help="automatic k: X times the branch-and-bound work the scan may spend "
+                       "(default 1; a fixed amount of work, the same on every machine); more "
+                       "for a large library whose searches stop undecided")
     ident.add_argument("--json", metavar="OUT.json",
                        help="write the model file here (its folder must exist)")
     ident.set_defaults(func=run)

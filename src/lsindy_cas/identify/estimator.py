@@ -83,6 +83,10 @@ class LagrangianSINDy(FittedModel):
         automatic k, which also stop after a fixed amount of work (the same on every machine),
         the k chosen, and the re-selection on the noise-weighted balance
         (:mod:`lsindy_cas.identify.selection`, :mod:`lsindy_cas.identify.reweight`).
+    effort : float
+        Automatic k: a factor on the work the scan may spend (per scout and in all): default 1
+        (a refusal within about a minute per k); more for a large library whose scouts stop
+        undecided (the refusal says so).  The same stopping points on every machine.
 
     Attributes (after ``fit``)
     --------------------------
@@ -116,10 +120,12 @@ class LagrangianSINDy(FittedModel):
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
                  window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
-                 hold: str = "auto", dissipation=None, time_limit: float | None = None):
+                 hold: str = "auto", dissipation=None, time_limit: float | None = None,
+                 effort: float = 1.0):
         self.library, self.n_terms, self.prior, self.form = library, n_terms, prior, form
         self.window, self.smoothing, self.max_terms = window, smoothing, max_terms
         self.hold, self.dissipation, self.time_limit = hold, dissipation, time_limit
+        self.effort = effort
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
@@ -144,6 +150,7 @@ class LagrangianSINDy(FittedModel):
         if self._diss_lib is not None and self.window is not None:
             raise ValueError("dissipation needs the all-windows integral form: leave window unset")
         check_real("time_limit", self.time_limit, positive=True, allow_none=True)
+        check_real("effort", self.effort, positive=True)
         return sorted(set(forced))
 
     def _form(self, trajectories) -> str:
@@ -302,7 +309,8 @@ class LagrangianSINDy(FittedModel):
                  if state_var is not None and bal.per_sample else None)
         sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
                      scale_system=scale_system, max_terms=self.max_terms, noise=noise,
-                     progress=progress, time_limit=self.time_limit, backend=backend)
+                     progress=progress, time_limit=self.time_limit, backend=backend,
+                     effort=self.effort)
         coef = sel.coef
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
         if state_var is not None and bal.per_sample:

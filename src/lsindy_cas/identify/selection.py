@@ -212,7 +212,7 @@ class _Columns:
 
 def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
               time_limit=None, automatic=False, work_left=AUTO_WORK, work_limit=None,
-              backend=None):
+              backend=None, scout_work=SCOUT_WORK):
     """Best admissible k-support, SearchResult in full indices: exhaustive up to EXHAUSTIVE
     supports; beyond, with ``automatic``, the beam from ``prev`` or else a branch-and-bound scout
     (module notes), otherwise branch and bound.  Raises NoAdmissibleModel."""
@@ -236,10 +236,10 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     if res is None and beam:
         if automatic:
             if work_left <= 0:
-                raise NoAdmissibleModel(f"the scan's {AUTO_WORK:,} units of branch-and-bound work "
-                                        "are spent: give n_terms, prior terms or max_terms", k,
-                                        False)
-            work_limit = min(SCOUT_WORK, work_left)
+                raise NoAdmissibleModel("the scan's units of branch-and-bound work are spent: "
+                                        "give n_terms, prior terms, max_terms or a larger "
+                                        "effort", k, False)
+            work_limit = min(scout_work, work_left)
         search = branch_and_bound if backend is None else backend.branch_and_bound
         res = search(A, bal.b, k, f_loc, admissible=adm, D=D if bal.passive else None,
                      scale_system=scale_system, time_limit=time_limit, progress=progress,
@@ -304,7 +304,7 @@ def _beam(A, b, D, k, prev: SearchResult, cols, admissible, scale_system, n_repo
 def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible: Callable | None = None,
            scale_system=None, exclude=(), max_terms: int | None = None, noise=None,
            progress: Callable | None = None, time_limit: float | None = None,
-           work_limit: float | None = None, backend=None) -> Selection:
+           work_limit: float | None = None, backend=None, effort: float = 1.0) -> Selection:
     """Choose the support (and k when ``n_terms`` is None) of the energy.
 
     Parameters
@@ -334,6 +334,9 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     backend : object, optional
         Where the searches run (:mod:`~lsindy_cas.identify.distributed`: ``score_all`` and
         ``branch_and_bound``); None: in this process.
+    effort : float
+        Automatic k: multiplies the scan's work budgets (``SCOUT_WORK`` per scout, ``AUTO_WORK``
+        for the scan): more for a large library whose scouts stop undecided.
 
     Returns
     -------
@@ -352,6 +355,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         step = Step(int(n_terms), res.support, res.coef, res.score, cv, per, res,
                     chi=_chi(bal, res, noise))
         return Selection(step.k, res.support, res.coef, res, [step], False, cols.excluded)
+    scout_work, auto_work = SCOUT_WORK * effort, AUTO_WORK * effort
     k_lo = max(len(forced), 2 if bal.passive else 1)
     k_hi = min(len(cols.keep), len(forced) + MAX_EXTRA if max_terms is None else int(max_terms))
     if k_hi < k_lo:
@@ -362,8 +366,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         t0 = time.monotonic()
         try:
             res, beam = _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev,
-                                  time_limit, automatic=True, work_left=AUTO_WORK - work,
-                                  backend=backend)
+                                  time_limit, automatic=True, work_left=auto_work - work,
+                                  backend=backend, scout_work=scout_work)
         except NoAdmissibleModel as exc:  # no admissible k-term model found: say so, try k + 1
             work += exc.work
             unscored.append(Unscored(k, str(exc), exc.proven, time.monotonic() - t0, exc.work))
@@ -376,7 +380,8 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
             try:
                 scout, _ = _search_k(bal, k, forced, cols, admissible, scale_system, progress,
                                      None, time_limit, automatic=True,
-                                     work_left=AUTO_WORK - work, backend=backend)
+                                     work_left=auto_work - work, backend=backend,
+                                     scout_work=scout_work)
                 work += scout.work
                 if scout.score < res.score - SCORE_RESOLUTION:
                     step = _step(bal, k, scout, True, folds, noise)
@@ -400,9 +405,10 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         if open_k:                       # not a proof: the scouts stopped before finding one
             raise UndeterminedError(
                 f"no model found for any number of terms {k_lo}..{k_hi}: the searches of k = "
-                + ", ".join(map(str, open_k)) + f" stopped undecided (a scout's {SCOUT_WORK:,} "
-                f"units of work each, {AUTO_WORK:,} for the scan) — give the number of terms "
-                "(n_terms / --terms), prior terms or a smaller library ("
+                + ", ".join(map(str, open_k)) + f" stopped undecided (a scout's {scout_work:,.0f} "
+                f"units of work each, {auto_work:,.0f} for the scan) — give the number of terms "
+                "(n_terms / --terms), prior terms, a smaller library or a larger search effort "
+                f"(effort / --effort, now {effort:g}) ("
                 + "; ".join(str(u) for u in unscored[:3]) + ")")
         raise UndeterminedError("the data cannot identify the energy: no physically admissible model "
                          f"with significant terms for any number of terms {k_lo}..{k_hi} — vary "
@@ -412,18 +418,18 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         best = fits
     if best.search is not None and (best.search.method == "beam" or not best.search.proven):
         best = _certify(bal, best, steps, forced, cols, admissible, scale_system, progress, noise,
-                        folds, time_limit, AUTO_WORK - work, backend)
+                        folds, time_limit, auto_work - work, backend, scout_work)
     return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded,
                      unscored)
 
 
 def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress, noise, folds,
-             time_limit, work_left, backend=None) -> Step:
+             time_limit, work_left, backend=None, scout_work=SCOUT_WORK) -> Step:
     """The chosen k came from the beam or a scout (no certificate): search it again by branch and
     bound (``time_limit`` seconds, or without one what is left of AUTO_WORK) and keep its answer —
     the same support, now with a certificate, or a better-scoring admissible one the first search
     missed; the first search's when it finds none."""
-    if time_limit is None and work_left < SCOUT_WORK:
+    if time_limit is None and work_left < scout_work:
         return step                      # the scan spent its budget: no certificate
     try:
         res, _ = _search_k(bal, step.k, forced, cols, admissible, scale_system, progress, None,
