@@ -138,7 +138,13 @@ def test_model_refine_lowers_the_simulation_error_and_keeps_the_support(swings):
             - model.rayleigh_coef_[1] * np.tanh(x[1] / 1e-2)) / 2.0
     np.testing.assert_allclose(np.asarray(model.ode()(x, [0.0])).ravel(), [x[1], want], rtol=1e-10)
     text = str(model)
-    assert "refined by prediction error" in text and "standard error" not in text
+    # the balance's errors are replaced by the refined fit's own (Gauss-Newton; the normalising
+    # term has none), and the verdict is the one on them
+    assert "refined by prediction error" in text and "Gauss-Newton" in text
+    assert model.coef_std_[0] == 0 and model.coef_std_[1] > 0
+    # ±0.0044 on cos θ (0.02 %, measured; error 3e-5): the refined value is that close to the truth
+    assert abs(model.coef_[1] + 19.62) < 4 * model.coef_std_[1] < 0.01 * 19.62
+    assert model.status_ in ("ok", "undetermined") and "balance_status" in model.refinement_
     assert model.to_dict()["refinement"]["applied"]
     model.fit(noisy, passive=True)          # fitted again: the refinement no longer describes it
     assert "refined" not in str(model) and "refinement" not in model.to_dict()
@@ -165,7 +171,7 @@ def test_cli_refine(tmp_path, swings):
     assert info["applied"] and info["rms_after"] < info["rms_before"]
     assert set(d["hamiltonian_terms"]) == {"theta_dot**2", "cos(theta)"}
     assert d["hamiltonian_terms"]["cos(theta)"] == pytest.approx(-19.62, rel=5e-4)
-    assert "hamiltonian_std" not in d          # the balance's errors do not apply to these values
+    assert "Gauss-Newton" in d["std_method"]    # the refined fit's own errors, not the balance's
     model = LagrangianSINDy.load(out)           # the file's model is the refined one
     assert model.terms() == d["hamiltonian_terms"] and model.refinement_ == d["refinement"]
     # bad input, before any fitting: unevenly sampled runs

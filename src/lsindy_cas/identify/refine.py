@@ -34,7 +34,7 @@ from .._validate import check_int, check_real, relative_energy
 from ..mechanics.parametric import DEFAULT_EPS, ParametricDynamics
 
 __all__ = ["RefineResult", "refine", "refine_model", "check_uniform", "current_refinement",
-           "refinement_text", "rk4_predictor", "predict"]
+           "refinement_text", "rk4_predictor", "predict", "prediction_std"]
 
 
 @dataclass
@@ -59,6 +59,9 @@ class RefineResult:
         IPOPT's return status, or "refused: ..." when the optimum is not a mechanical system on
         the data (mass matrix not positive definite, or friction that creates energy);
         ``success`` whether it converged to an admissible optimum (otherwise nothing is applied).
+    std : array (n_params,) or None
+        Standard errors of ``coef`` (:func:`prediction_std`; 0 for the fixed terms), None when
+        the linearisation is singular.
     """
 
     names: list
@@ -74,6 +77,7 @@ class RefineResult:
     iterations: int
     seconds: float
     n_intervals: int
+    std: np.ndarray | None = None
     report: dict = field(default_factory=dict)
 
     def lagrangian_terms(self) -> dict:
@@ -115,6 +119,63 @@ def predict(dynamics: ParametricDynamics, p, x0, t, Q=None, steps: int = 4) -> n
     roll = step.mapaccum("roll", len(t) - 1)
     X = roll(np.asarray(x0, float), Q[:-1].T, np.asarray(p, float), np.diff(t)[None, :])
     return np.vstack([np.asarray(x0, float)[None, :], np.asarray(X).T])
+
+
+def prediction_std(dyn: ParametricDynamics, p, x0s, trajectories, steps: int, rate_weight: float,
+                   free, fit_start: bool = True) -> np.ndarray | None:
+    """Standard errors (n_params,) of prediction-error coefficients ``p`` by Gauss–Newton.
+
+    At the optimum each run is one free simulation x̂(θ) from its initial state, and the fit
+    minimised Σ ‖W (x̂ − x)‖² with W = diag(1, …, ``rate_weight``, …).  Linearised there, the
+    coefficients' error is −A⁻¹ Jᵀ W² ε with J = ∂x̂/∂θ over every sample and A = Jᵀ W² J;
+    θ holds the ``free`` coefficients and (``fit_start``) every run's initial state, so the
+    fitted initial states are part of the uncertainty (a Schur complement), and the fixed terms
+    (the normalisation: the others are relative to them) have none.  The residual ε is taken as
+    white noise with one variance per state column, estimated from the residuals themselves
+    (degrees of freedom removed in proportion): the measurement noise of q and q̇ differ, and W
+    weights them unequally, so the covariance is the sandwich A⁻¹ (Jᵀ W² Σ W² J) A⁻¹.
+    Correlated model error (a missing term, friction) shows as larger residuals, not as a
+    longer correlation: the error is then understated; the status reads the residual too.
+    """
+    n, m = dyn.coords.n, dyn.n_params
+    step = rk4_predictor(dyn.ode(), n, steps)
+    P, x0 = ca.MX.sym("p", m), ca.MX.sym("x0", 2 * n)
+    w2 = np.r_[np.ones(n), np.full(n, rate_weight ** 2)]
+    free = list(free)
+    n_x = 2 * n if fit_start else 0
+    blocks, resid = [], []
+    for r, (s0, tr) in enumerate(zip(x0s, trajectories)):
+        N = tr.n_samples
+        roll = step.mapaccum("roll", N - 1)
+        X = ca.horzcat(x0, roll(x0, tr.Q[:-1].T, P, np.diff(tr.t)[None, :]))   # (2n, N)
+        args = ca.vertcat(P, x0) if fit_start else P
+        f = ca.Function("sensitivity", [P, x0], [ca.vec(X), ca.jacobian(ca.vec(X), args)])
+        Xv, Jv = (np.asarray(v) for v in f(np.asarray(p, float), np.asarray(s0, float)))
+        resid.append(Xv.ravel().reshape(N, 2 * n) - tr.X)       # vec is column-major: (2n) per sample
+        blocks.append((r, Jv.reshape(N, 2 * n, -1)))
+    n_runs = len(trajectories)
+    k = len(free) + n_x * n_runs
+    E = np.vstack(resid)
+    dof = max(E.size - k, 1) / E.size
+    var = np.mean(E ** 2, axis=0) / dof                        # per state column
+    A, B = np.zeros((k, k)), np.zeros((k, k))
+    for r, J in blocks:
+        full = np.zeros(J.shape[:2] + (k,))
+        full[:, :, :len(free)] = J[:, :, free]
+        if fit_start:
+            lo = len(free) + n_x * r
+            full[:, :, lo:lo + n_x] = J[:, :, m:]
+        Jw = full * w2[None, :, None]
+        A += np.einsum("nki,nkj->ij", Jw, full)
+        B += np.einsum("nki,nkj->ij", Jw * var[None, :, None], Jw)
+    try:
+        Ai = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None
+    cov = Ai @ B @ Ai
+    out = np.zeros(m)
+    out[free] = np.sqrt(np.maximum(np.diag(cov)[:len(free)], 0.0))
+    return out if np.all(np.isfinite(out)) else None
 
 
 def _bounds(dyn: ParametricDynamics, lower, upper):
@@ -297,12 +358,15 @@ def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fix
                for x0, tr in zip(starts, trajectories)]
         return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
     first = [tr.X[0] for tr in trajectories]
+    free = [j for j in range(dyn.n_params) if j not in fixed_idx]
+    std = prediction_std(dyn, coef, x0s if free_start else first, trajectories, steps,
+                         rate_weight, free, fit_start=free_start)
     return RefineResult(
         names=dyn.names, n_lagrangian=dyn.n_lagrangian, coef=coef, initial=p0,
         fixed=[dyn.names[j] for j in fixed_idx], x0=x0s,
         rms_initial=rms(p0, starts0 or first), rms=rms(coef, x0s if free_start else first),
         status=refused or stats["return_status"], success=bool(stats["success"]) and not refused,
-        iterations=int(stats["iter_count"]), seconds=seconds, n_intervals=n_intervals,
+        iterations=int(stats["iter_count"]), seconds=seconds, n_intervals=n_intervals, std=std,
         report={"cost": float(sol["f"]), "interval": interval, "steps": steps,
                 "rate_weight": rate_weight, "eps": eps, "n_samples": n_samples})
 
@@ -326,7 +390,10 @@ def refine_model(model, trajectories, interval: float = 0.25, steps: int = 2,
     ``normalised_by_`` coefficient; free motion with an absolute energy (scale record) keeps the
     first kinetic term's.  H follows from L term by term (θ ↦ (d − 1) θ, d = degree in the
     velocities).  The model then shows the refined H, L, R and ODE; its energy-balance standard
-    errors no longer apply and are removed; ``refinement_`` records what was done and
+    errors no longer apply and are replaced by the refined fit's own (:func:`prediction_std`,
+    Gauss–Newton), and the verdict's coefficient rule is judged again on them
+    (:func:`.status.refined_status`; the balance's verdict stays in
+    ``refinement_["balance_status"]``); ``refinement_`` records what was done and
     ``refine_result_`` holds the :class:`RefineResult`.  If IPOPT does not converge or the refined
     coefficients predict worse, the model is left unchanged and ``refinement_["applied"]`` is False.
 
@@ -392,10 +459,34 @@ def refine_model(model, trajectories, interval: float = 0.25, steps: int = 2,
         coef[S] = res.coef[:len(S)] / to_l
         rho[D] = res.coef[len(S):]
         model._set_coefficients(coef, rayleigh=rho if dlib is not None else None)
-        # the jackknife errors belong to the energy-balance estimate, not to these coefficients
-        model.coef_std_ = model.lagrangian_coef_std_ = model.std_method_ = None
+        _refined_errors(model, res, S, to_l)
     model.refinement_.update(hamiltonian_terms=model.terms(), rayleigh_terms=model.terms("rayleigh"))
     return model
+
+
+def _refined_errors(model, res, S, to_l) -> None:
+    """The refined coefficients' own standard errors (:func:`prediction_std`) in place of the
+    balance's, and the verdict on them (:func:`.status.refined_status`)."""
+    from .status import refined_status
+    model.coef_std_ = model.lagrangian_coef_std_ = model.std_method_ = None
+    std = None
+    if res.std is not None:
+        std_l = np.zeros(len(model.coef_))
+        std_l[S] = res.std[:len(S)]
+        std = std_l.copy()
+        std[S] *= np.abs(1.0 / to_l)                 # ξ_H = (d − 1) ξ_L, term by term
+        model.coef_std_, model.lagrangian_coef_std_ = std, std_l
+        model.std_method_ = "Gauss-Newton, prediction error over the runs"
+        model.refinement_["hamiltonian_std"] = {model.library.names[j]: float(std[j]) for j in S}
+    if getattr(model, "status_", None) is None:
+        return
+    status, reasons = refined_status(model.status_reasons_, model.coef_, std, model.library.names,
+                                     "standard error of the prediction-error fit")
+    model.refinement_["balance_status"] = model.status_
+    model.status_, model.status_reasons_ = status, reasons
+    d = getattr(model, "diagnostics_", None)
+    if d is not None and getattr(d, "status", None) is not None:
+        d.status, d.status_reasons = status, list(reasons)
 
 
 def current_refinement(model):
