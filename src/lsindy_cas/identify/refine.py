@@ -134,8 +134,10 @@ def prediction_std(dyn: ParametricDynamics, p, x0s, trajectories, steps: int, ra
     white noise with one variance per state column, estimated from the residuals themselves
     (degrees of freedom removed in proportion): the measurement noise of q and q̇ differ, and W
     weights them unequally, so the covariance is the sandwich A⁻¹ (Jᵀ W² Σ W² J) A⁻¹.
-    Correlated model error (a missing term, friction) shows as larger residuals, not as a
-    longer correlation: the error is then understated; the status reads the residual too.
+    Model error (a missing term, unmodelled friction) is correlated in time, which this does not
+    see: it counts only as a larger residual variance, and the errors are then understated.
+    Measured on the noise sweep's paper protocol (σ = 1e-3, 20 seeds per system): 70 % of the
+    refined coefficients within one standard error of the truth.
     """
     n, m = dyn.coords.n, dyn.n_params
     step = rk4_predictor(dyn.ode(), n, steps)

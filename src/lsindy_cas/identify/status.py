@@ -35,7 +35,9 @@
    integral with the rows' correlations (:func:`~.standard_errors.propagated_std`: the smoothed
    all-windows integral form with measured velocities); elsewhere its jackknife standard error
    exceeds ``REL_STD_BAD`` (the jackknife over stretches treats correlated stretches as
-   independent: measured 0.3–4× the real scatter on the noise sweep's cart cells);
+   independent: measured 0.3–4× the real scatter on the noise sweep's cart cells).  Coefficients
+   refined afterwards by prediction error are judged again on their own standard errors
+   (:func:`refined_status`);
 8. **k undecided** — automatic k: the search of a smaller k stopped before it found an admissible
    model or proved there is none, and the chosen model does not fit to the noise (χ ≤ ``CHI_OK``)
    or, without a noise model, to the floor of clean data (``EXACT_CV``): a smaller model might
