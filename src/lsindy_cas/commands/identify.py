@@ -114,11 +114,10 @@ def run(args) -> int:
         from ..identify.findings import code_of
         if not args.refine and any(code_of(r) in (F.STD_PROPAGATED, F.STD_JACKKNIFE)
                                    for r in model.status_reasons_):
-            # measured: benchmarks/results/noise_refined.md (the paper's cart run, sigma = 1e-3:
-            # 19/20 within 5 % refined, 9/20 from the balance alone)
+            # measured: benchmarks/results/noise_refined.md (the paper's run, sigma = 1e-3, 60
+            # fits: 59 ok refined, 20 from the balance alone; no refined fit wrongly ok)
             print("hint: the energy balance leaves a coefficient undetermined; --refine fits the "
-                  "coefficients by prediction error, which can determine them (the verdict still "
-                  "reports the balance's uncertainty)")
+                  "coefficients by prediction error and judges them by its own standard errors")
         print(f"lsindy identify: the data do not determine the model: {model.status_reasons_[0]}",
               file=sys.stderr)
         return EXIT_UNDETERMINED
