@@ -136,7 +136,7 @@ class TimedPlanner:
 
 def run(system, planner, n, seed0, parts):
     from lsindy_cas.control.controller import Controller
-    from lsindy_cas.control.episodes import GoalClock
+    from lsindy_cas.control.episodes import run_episode
 
     t_part = time.perf_counter()
     model, task, make_plant, start = parts
@@ -146,34 +146,18 @@ def run(system, planner, n, seed0, parts):
     ctrl.search = timed = TimedPlanner(ctrl.search)
     reset, step = make_plant(ctrl)
     b = ctrl.bound
-    n_steps = int(round(task.episode.duration / task.dt))
     episodes, times, traces = [], [], []
     for i in range(n):
         seed = seed0 + i
-        x = np.asarray(reset(start(seed)), float)
-        x0 = x.copy()
-        ctrl.reset()
-        clock = GoalClock(ctrl)
-        clock.update(x, 0)
-        inside = bool(np.all((x >= b.lower) & (x <= b.upper)))
-        ep_times, X = [], [x0]
-        for k in range(1, n_steps + 1):
-            t1 = time.perf_counter()
-            u = ctrl(x)
-            ep_times.append(time.perf_counter() - t1)
-            x = np.asarray(step(x, u), float).ravel()
-            X.append(x)
-            if not np.all(np.isfinite(x)):
-                inside = False
-                break
-            inside &= bool(np.all((x >= b.lower) & (x <= b.upper)))
-            clock.update(x, k)
-        held = clock.done_at is not None
+        x0 = np.asarray(reset(start(seed)), float)
+        r = run_episode(ctrl, step, x0, stop_at_goal=False)
+        ep_times, X, inside = r.step_times, r.X, r.within_limits
+        held = r.time_to_goal is not None
         times += ep_times
         traces.append(np.array(X))
         ep = {"seed": seed, "x0": [round(float(v), 6) for v in x0], "success": held and inside,
               "held": held, "within_limits": inside,
-              "time_to_goal": round(clock.done_at * task.dt, 3) if held else None,
+              "time_to_goal": round(r.time_to_goal, 3) if held else None,
               "step_ms_max": round(1e3 * max(ep_times), 2)}
         episodes.append(ep)
         log(f"{system} {planner} seed {seed}: {'held' if held else 'NOT held'}"
