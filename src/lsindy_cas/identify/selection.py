@@ -54,7 +54,6 @@ fit better than exactly.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import time
 from math import comb
 from typing import Callable
@@ -65,6 +64,7 @@ from .energy_balance import EnergyBalance
 from .held_out import CV_FLOOR, chi_of, cv_error, fold_ids  # noqa: F401 (importable here)
 from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import NoAdmissibleModel, SearchResult, best_subset, score_supports, visit
+from .selection_records import Selection, Step, Unscored
 from .findings import UndeterminedError  # noqa: F401 (importable here)
 
 __all__ = ["Step", "Selection", "Unscored", "UndeterminedError", "select", "cv_error", "chi_of",
@@ -99,73 +99,6 @@ AUTO_WORK = 1_200_000
 # models of one term more 5e-8 - 8e-6 (Acrobot, 48 runs), so nothing of more terms can do better.
 EXACT_CV = 1e-10
 _T95 = {1: 6.31, 2: 2.92, 3: 2.35, 4: 2.13, 5: 2.02}   # one-sided 5 % t quantiles, by dof
-
-
-@dataclass
-class Step:
-    """The best admissible support of one size k and its held-out error."""
-
-    k: int
-    support: tuple
-    coef: np.ndarray = field(repr=False)
-    score: float
-    cv: float
-    cv_folds: np.ndarray = field(repr=False)
-    search: SearchResult | None = field(default=None, repr=False)
-    beam: bool = False          # found by the beam or branch and bound (not every support scored)
-    chi: float = float("nan")
-
-
-@dataclass
-class Selection:
-    """Outcome of :func:`select`.
-
-    Attributes
-    ----------
-    k : int
-    support : tuple of int
-    coef : array (p,)
-    search : SearchResult
-        The search at the chosen k (candidates for the diagnostics).
-    steps : list of Step
-        Every k scored, in order (one entry when k was given).
-    automatic : bool
-    excluded : list of int
-        Library terms left out of the search (see ``exclude``).
-    unscored : list of Unscored
-        Automatic k: every k of the scan without a model, with the reason (module notes).
-    """
-
-    k: int
-    support: tuple
-    coef: np.ndarray
-    search: SearchResult
-    steps: list
-    automatic: bool
-    excluded: list
-    unscored: list = field(default_factory=list)
-
-    @property
-    def undecided(self) -> list:
-        """The k below the chosen one whose search stopped before finding a model or proving
-        there is none."""
-        return [u for u in self.unscored if not u.proven and u.k < self.k]
-
-
-@dataclass
-class Unscored:
-    """A k of the automatic scan without a model: ``proven`` if no admissible k-term model
-    exists, otherwise undecided (its search stopped first); ``seconds`` and ``work`` it spent."""
-
-    k: int
-    reason: str
-    proven: bool
-    seconds: float = 0.0
-    work: float = 0.0
-
-    def __str__(self) -> str:
-        what = "no admissible model" if self.proven else "undecided"
-        return f"k = {self.k}: {what} ({self.reason}; {self.seconds:.1f} s)"
 
 
 def _better(new: Step, old: Step) -> bool:
