@@ -78,11 +78,11 @@ def run(args) -> int:
     out = output_dir(args.out, "--out") if args.out else None
     plugin = None
     if args.plugin is not None:
-        from ..control.plugins import available, plugin as make_plugin
-        if args.plugin not in available():         # refused before any work
-            raise ValueError(f"--plugin {args.plugin!r}: known plug-ins are "
-                             f"{', '.join(available())}")
-        plugin = make_plugin(args.plugin)
+        from ..control.plugins import plugin as make_plugin
+        try:                                       # refused before any work
+            plugin = make_plugin(args.plugin)
+        except ValueError as exc:
+            raise ValueError(f"--plugin {args.plugin!r}: {exc}") from None
     task = Task.load(args.task)
     model = LagrangianSINDy.load(args.model)
     task.bind(model.coords_)                       # names checked before anything is built

@@ -187,8 +187,6 @@ class Controller:
         self._energy_map = maybe_compiled(
             sys_.energy.map(max(1, self.settings.width * len(self.candidates))), jit)
         self.energy_scale = self._energy_scale(rng)
-        nq = sys_.n // 2
-        self._actuated_rates = nq + np.flatnonzero(np.any(self.bound.B != 0, axis=1))
         self.local, self.region = None, 0.0
         if self.bound.target is not None:
             self._build_target(rng)
@@ -299,7 +297,7 @@ class Controller:
             # actuated coordinates' rates at zero (their kinetic energy is the inputs' to give
             # or take; on a Furuta pendulum the full H rewards spinning the arm)
             X0 = np.array(X, dtype=float, copy=True)
-            X0[:, self._actuated_rates] = 0.0
+            X0[:, self.system.actuated_rates] = 0.0
             E = self._energies(X0)
             # distance: the local policy's cost-to-go in decades above its region
             dist = np.log10(np.maximum(self._value(X) / self.region, 1.0))

@@ -129,9 +129,9 @@ def check_nlp_task(bound):
 
 def residuals(system, bound, energy_scale, target_energy, settings):
     """``(stage, terminal)`` residual functions ``x -> r`` (see the module's docstring)."""
-    n, nq = system.n, system.n // 2
+    n = system.n
     x = ca.SX.sym("x", n)
-    actuated = set((nq + np.flatnonzero(np.any(bound.B != 0, axis=1))).tolist())
+    actuated = set(system.actuated_rates.tolist())
     still = ca.vertcat(*[0 if i in actuated else x[i] for i in range(n)])
     r = [np.sqrt(settings.energy_weight) * (system.energy(still) - target_energy) / energy_scale]
     lo, hi = bound.lower, bound.upper

@@ -46,6 +46,9 @@ class ControlledSystem:
         ``(x (n,), u (m,)) -> x_next``: the held inputs over one sample ``dt``.
     energy : casadi.Function
         ``x -> H(x)``.
+    actuated_rates : ndarray of int
+        The states that are rates of coordinates an input acts on (the energy to shape leaves
+        them out: the inputs set them directly).
     angles : ndarray of bool (n,)
         States that are angles (compared modulo 2π): H depends on them, 2π-periodically.
     cyclic : ndarray of bool (n,)
@@ -78,6 +81,7 @@ class ControlledSystem:
         Hx = c.to_casadi(H)
         self.energy = ca.Function("H", [c.x], [Hx])
         self.mass = ca.Function("M", [c.x], [ca.hessian(Hx, c.qd)[0]])
+        self.actuated_rates = c.n + np.flatnonzero(np.any(bound.B != 0, axis=1))
         self.angles = self._angles(rng, c.n)
         self._check_kinetic(bound, rng)
 

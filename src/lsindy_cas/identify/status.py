@@ -148,12 +148,8 @@ def assess(fit, d, simulate, coef_std=None) -> tuple[str, list, dict]:
         # rule 7 with the correctly sized error where it can be built (module notes)
         checks["propagated_relative_std"] = prop
         if prop > REL_STD_PROPAGATED:
-            reasons.append(Finding(
-                f"the coefficient of {fit.library.names[least_p]} is determined only to "
-                f"±{100 * prop:.2g} % (standard error propagated from the estimated "
-                f"noise; more than {100 * REL_STD_PROPAGATED:.3g} %): add runs, vary "
-                "the input or reduce the noise", F.STD_PROPAGATED,
-                {"relative_std": prop, "limit": REL_STD_PROPAGATED, "term": least_p}))
+            reasons.append(_open_coefficient(fit.library.names, least_p, prop,
+                                             "standard error propagated from the estimated noise"))
     elif rel is not None and rel > REL_STD_BAD:
         reasons.append(Finding(
             f"the coefficient of {fit.library.names[least]} is determined only to "
@@ -234,12 +230,17 @@ def refined_status(reasons, coef, coef_std, names, how: str) -> tuple[str, list]
     else:
         reasons = [r for r in reasons if code_of(r) not in (F.STD_PROPAGATED, F.STD_JACKKNIFE)]
         if rel > REL_STD_PROPAGATED:
-            reasons.append(Finding(
-                f"the coefficient of {names[j]} is determined only to ±{100 * rel:.2g} % "
-                f"({how}; more than {100 * REL_STD_PROPAGATED:.3g} %): add runs, vary the input "
-                "or reduce the noise", F.STD_PROPAGATED,
-                {"relative_std": rel, "limit": REL_STD_PROPAGATED, "term": j}))
+            reasons.append(_open_coefficient(names, j, rel, how))
     return (UNDETERMINED if reasons else OK), reasons
+
+
+def _open_coefficient(names, j, rel, how: str) -> Finding:
+    """Rule 7's finding for a correctly sized standard error ``rel`` of coefficient ``j``
+    above ``REL_STD_PROPAGATED``; ``how`` names the error."""
+    return Finding(
+        f"the coefficient of {names[j]} is determined only to ±{100 * rel:.2g} % ({how}; "
+        f"more than {100 * REL_STD_PROPAGATED:.3g} %): add runs, vary the input or reduce the "
+        "noise", F.STD_PROPAGATED, {"relative_std": rel, "limit": REL_STD_PROPAGATED, "term": j})
 
 
 def _relative_errors(coef, coef_std):
