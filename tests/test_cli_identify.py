@@ -148,3 +148,18 @@ def test_cli_pure_noise_exits_3_whether_or_not_a_model_passes(tmp_path, seed, wr
     assert out.exists() == written
     if not written:
         assert "cannot identify the energy" in lines[0]
+
+
+def test_no_admissible_model_at_the_given_k_is_a_verdict_not_bad_input(capsys):
+    """The README's noisy cart runs with --terms 3: the search runs and finds no physically
+    admissible 3-term energy (the true one has 4 terms).  That is about the data, so the exit
+    code is 3 (undetermined), one line on stderr, not 2 (bad input)."""
+    from pathlib import Path
+    data = Path(__file__).resolve().parents[1] / "examples" / "data"
+    files = sorted(str(p) for p in data.glob("cart_noisy*.csv"))
+    assert files
+    code = main(["identify", *files, *BASE, "--prior", "theta_dot**2,cos(theta)", "--terms", "3"])
+    err = capsys.readouterr().err
+    assert code == 3, err
+    assert "the data do not determine the model" in err and "3-term" in err, err
+    assert len(err.strip().splitlines()) == 1, err

@@ -24,6 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, clearly_not_pd, reducible
+from .findings import UndeterminedError
 from .fitting import coef_on_support, column_norms, normal_equations, normalise_columns
 from .subset_tree import combinations, subtree_scores, subtree_supports, tree_scores
 
@@ -65,8 +66,9 @@ def _forward(L: np.ndarray, c: np.ndarray) -> np.ndarray:
     return y
 
 
-class NoAdmissibleModel(ValueError):
-    """A search found no physically admissible model of ``k`` terms.
+class NoAdmissibleModel(UndeterminedError):
+    """A search found no physically admissible model of ``k`` terms: a verdict on the data
+    (with this library and these options), so ``lsindy identify`` exits 3 on it, not 2.
 
     ``proven``: every support was ruled out (none exists); otherwise the search stopped first
     (``seconds``, ``work``: what it spent) and the question is open.
