@@ -146,6 +146,26 @@ def test_work_limit_stops_at_the_same_point_every_time(rng):
     assert same.proven and (same.support, same.nodes) == (full.support, full.nodes)
 
 
+def test_a_stopped_search_goes_on_where_it_stopped(rng):
+    """A search stopped by its work limit hands back its state; resumed, it repeats nothing and
+    reaches the same proven optimum as one uninterrupted search, with the totals of all its calls;
+    a proven search has no state left."""
+    A = rng.normal(size=(60, 24))
+    b = rng.normal(size=60)
+    full = branch_and_bound(A, b, 4)
+    res, calls = branch_and_bound(A, b, 4, work_limit=100), 1
+    assert not res.proven and res.state is not None
+    while res.state is not None:
+        before = res.work
+        res = branch_and_bound(A, b, 4, resume=res.state, work_limit=100)
+        calls += 1
+        assert res.work > before                       # totals, not the last call's share
+    assert res.proven and calls > 2
+    assert res.support == full.support and abs(res.score - full.score) < 1e-12
+    # nothing repeated: the work of all calls is that of one search, up to one slice per call
+    assert res.work <= full.work + calls * 4 * 5000
+
+
 def test_keyboard_interrupt_returns_best_so_far(rng, monkeypatch):
     import lsindy_cas.identify.bnb as bnb
     calls = {"n": 0}

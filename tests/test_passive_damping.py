@@ -238,13 +238,13 @@ def _dissipation(n):
             for i in range(n) for j in range(i, n)]
 
 
-def _identify(params, extra, seed, library=None, n_runs=3, seconds=3.0):
+def _identify(params, extra, seed, library=None, n_runs=3, seconds=3.0, auto_k=False):
     chain = _chain()
     plant = chain.pendulum_chain(**params)
     truth = chain.energy_terms(plant)
     runs = chain.free_swings(plant, np.random.default_rng(seed), n_runs=n_runs, seconds=seconds)
     lib = library or Library(plant.coords, list(truth) + extra)
-    model = LagrangianSINDy(lib, n_terms=len(truth), prior=PRIOR,
+    model = LagrangianSINDy(lib, n_terms=None if auto_k else len(truth), prior=PRIOR,
                             dissipation=_dissipation(len(plant.coords))).fit(
         [tr for tr, _, _ in runs], passive=True)
     return plant, truth, model
@@ -285,3 +285,34 @@ def test_damped_double_pendulum_full_degree_3_library():
     feats = ["cos(theta1)", "sin(theta1)", "cos(theta2)", "sin(theta2)", "theta1_dot", "theta2_dot"]
     lib = Library.polynomial(["theta1", "theta2"], feats, 3)
     _check(*_identify(DOUBLE, [], 0, library=lib, seconds=2.0))
+
+
+def test_dropping_a_friction_term_keeps_the_chosen_number_of_terms(monkeypatch):
+    """Automatic k with three damping candidates, one of which (θ̇1θ̇2) the data do not support:
+    the fit is repeated without it at the k the scan chose (the support searched again at that
+    k, not a new scan whose scouts could miss what the first found), the scan's record kept."""
+    from lsindy_cas.identify import estimator
+    calls = []
+    real = estimator.select
+
+    def spy(bal, forced, **kw):
+        calls.append((kw.get("n_terms"), bal.dissipation.shape[1]))
+        return real(bal, forced, **kw)
+
+    monkeypatch.setattr(estimator, "select", spy)
+    plant, truth, model = _identify(DOUBLE, DOUBLE_EXTRA, 0, seconds=2.0, auto_k=True)
+    _check(plant, truth, model)
+    assert [c for c in calls if c[0] is None] == [(None, 3)]       # one scan, all 3 candidates
+    assert model.selection_.automatic and len(model.selection_.steps) > 1
+
+
+@pytest.mark.slow
+def test_damped_double_pendulum_full_library_automatic_k():
+    """The 83-term library with k chosen automatically: the scouts of k = 7 … 11 stop undecided
+    within their first stretch of work; going on with them finds the exact 8-term energy (~3 min)."""
+    feats = ["cos(theta1)", "sin(theta1)", "cos(theta2)", "sin(theta2)", "theta1_dot", "theta2_dot"]
+    lib = Library.polynomial(["theta1", "theta2"], feats, 3)
+    plant, truth, model = _identify(DOUBLE, [], 0, library=lib, seconds=2.0, auto_k=True)
+    _check(plant, truth, model)
+    assert model.n_terms_ == 8
+

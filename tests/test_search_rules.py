@@ -235,3 +235,28 @@ def test_a_scan_with_only_undecided_ks_says_so(rng, monkeypatch):
     with pytest.raises(selection.UndeterminedError, match=r"k = 1, 2, .* stopped undecided"
                                                           r".*--terms"):
         select(bal, [], max_terms=4)
+
+
+def test_undecided_scouts_go_on_until_a_model_fits(monkeypatch):
+    """When no k of the scan fits and scouts stopped undecided, their searches go on where they
+    stopped (smallest k first, doubling the work) until one finds the model that fits exactly:
+    here every scout gets one unit of work, and the exact 3-term model still comes out."""
+    bal = _synthetic(np.random.default_rng(0), sigma=0.0)
+    full = select(bal, [])
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+    monkeypatch.setattr(selection, "SCOUT_WORK", 1)
+    monkeypatch.setattr(selection, "_beam", lambda *a, **kw: (_ for _ in ()).throw(
+        selection.NoAdmissibleModel("no extension", a[3], False)))
+    real, resumed = selection.branch_and_bound, []
+
+    def spy(*args, resume=None, **kw):
+        resumed.append(resume is not None)
+        return real(*args, resume=resume, **kw)
+
+    monkeypatch.setattr(selection, "branch_and_bound", spy)
+    auto = select(bal, [])
+    assert (auto.k, auto.support) == (full.k, full.support) == (3, (0, 1, 2))
+    assert any(resumed) and auto.steps[-1].k == 3 and auto.steps[-1].cv <= selection.EXACT_CV
+    assert all(u.k > 3 and not u.proven for u in auto.unscored)    # above the fit: left open
+    assert all(getattr(st.search, "state", None) is None for st in auto.steps)  # trees dropped
+

@@ -48,21 +48,20 @@ from typing import Callable
 
 import numpy as np
 
-from .._validate import check_real
 from .admissibility import NO_SCALE_REASON, REDUCIBLE_REASON, reducible
 from .fitting import coef_on_support, normalise_columns
-from .bnb_drive import EXAMINE_COST, check_inputs, drive, nothing_admissible
+from .bnb_drive import (EXAMINE_COST, RUNNERS_UP, BnbState, check_inputs,  # noqa: F401
+                        drive_and_conclude)
 from .bnb_leaves import SKIP_TOL, pair_positions, passive_bounds, trim_queue
 from .bnb_leaves import suffix_explained as _suffix_explained
 from .screening import Basis, l1_order, screening_order, structure_of
 from .search import DEGENERACY_TOL, Candidate, SearchResult, score_chunks
 
-__all__ = ["branch_and_bound", "screening_order", "structure_of", "SCORE_RESOLUTION", "SKIP_TOL"]
+__all__ = ["branch_and_bound", "BnbState", "screening_order", "structure_of", "SCORE_RESOLUTION", "SKIP_TOL"]
 
 # Scores are relative residuals (or eigenvalues of a unit-diagonal Gram matrix) in [0, 1] computed
 # from Gram matrices: two of them closer than this are a round-off tie.
 SCORE_RESOLUTION = 1e-12
-RUNNERS_UP = 2000               # scored leaves kept as runners-up (best first)
 _MAX_OPEN = 2_000_000      # open nodes kept (memory, ~0.5 GB): beyond, stop as not proven
 _MAX_QUEUED = 4_000_000    # leaves queued (~0.25 GB); beyond, the worse half dropped (not proven)
 _EAGER = 1                 # hopeful leaves of a batch examined at once (the rest queued)
@@ -352,7 +351,7 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
                      tol: float = SCORE_RESOLUTION, n_report: int = 10,
                      progress: Callable | None = None, screen="auto",
                      structure=None, best_first: bool = False,
-                     work_limit: float | None = None) -> SearchResult:
+                     work_limit: float | None = None, resume=None) -> SearchResult:
     """Best admissible k-term support of ``A ξ ≈ b`` (or of a null vector) by branch and bound.
 
     Same inputs and result as :func:`lsindy_cas.identify.search.best_subset`, plus a certificate
@@ -367,7 +366,12 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     work_limit : float, optional
         The same after this much work (nodes expanded plus ``EXAMINE_COST`` per leaf examined,
         :mod:`~lsindy_cas.identify.bnb_drive`): a limit that stops at the same point on every
-        machine.
+        machine.  With ``resume``: this much more work.
+    resume : BnbState, optional
+        Go on with a search that stopped before it was proven (its result's or error's
+        ``state``; None once proven or interrupted); the other arguments but ``time_limit``,
+        ``work_limit`` and ``progress`` are then ignored.  Nothing done before is repeated; the
+        result's counts and seconds are the totals of every call.
     tol : float
         Prune a subtree whose bound is within ``tol`` of the incumbent (score units, ≥ 0).
     progress : callable ``(n_done, n_total)``, optional
@@ -397,6 +401,8 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
     SearchResult
         ``supports``/``scores`` hold the best scored leaves (at most 2000), not every support.
     """
+    if resume is not None:               # more work on a search stopped before (``.state``)
+        return drive_and_conclude(resume, time_limit, progress, work_limit)
     m, p = A.shape
     forced, k, time_limit, tol = check_inputs(A, b, D, k, forced, time_limit, tol)
     if k == len(forced):
@@ -418,32 +424,4 @@ def branch_and_bound(A: np.ndarray, b: np.ndarray | None, k: int, forced=(), *,
         if trees[0] is None:
             raise ValueError("the basis-pursuit order needs driven data (b) and a solvable "
                              "linear programme")
-    work_limit = check_real("work_limit", work_limit, positive=True, allow_none=True)
-    lower, proven, seconds, interrupted = drive(trees, time_limit, progress, slices, work_limit)
-    # leaves dropped from a full queue were never examined: proven only if none could win
-    proven = proven and all(t.lower_dropped >= s.incumbent - tol for t in trees)
-    for t in trees[1:]:
-        s.pool_S += t.pool_S
-        s.pool_s += t.pool_s
-        for name in ("n_leaves", "n_degenerate", "nodes", "n_examined", "n_reducible"):
-            setattr(s, name, getattr(s, name) + getattr(t, name))
-    if s.winner is None and interrupted:
-        raise KeyboardInterrupt            # nothing to return: let the caller stop
-    if s.winner is None:
-        raise nothing_admissible(k, s.candidates, proven, seconds, s.nodes, s.n_leaves, s.work)
-    s._trim_pool()
-    sup, sc = s.pool_S[0], s.pool_s[0]
-    w = s.winner
-    coef, nd = coef_on_support(A, b, w.support, scale_system)     # as the exhaustive path
-    if coef is not None:
-        w.coef, s.null_dim = coef, nd
-    seen = {c.support for c in s.candidates}
-    runners = [Candidate(tuple(int(j) for j in S), float(v)) for S, v in zip(sup, sc)
-               if tuple(int(j) for j in S) not in seen][:n_report]
-    cands = sorted(s.candidates, key=lambda c: c.score) + runners
-    res = SearchResult(w.support, w.coef, w.score, cands, s.n_leaves, s.n_degenerate, s.null_dim,
-                       sc, sup, s.n_reducible)
-    res.method, res.proven, res.interrupted = "bnb", proven, interrupted
-    res.gap = max(0.0, w.score - lower)
-    res.nodes, res.seconds, res.work = s.nodes, seconds, s.work
-    return res
+    return drive_and_conclude(BnbState(trees, slices), time_limit, progress, work_limit)

@@ -12,13 +12,16 @@ is the only thing that depends on the clock.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._validate import check_real
-from .search import NoAdmissibleModel
+from .fitting import coef_on_support
+from .search import Candidate, NoAdmissibleModel, SearchResult
 
-__all__ = ["drive", "check_inputs", "nothing_admissible", "EXAMINE_COST", "SLICE_WORK"]
+__all__ = ["drive", "check_inputs", "nothing_admissible", "BnbState", "drive_and_conclude",
+           "EXAMINE_COST", "SLICE_WORK", "RUNNERS_UP"]
 
 REPORT_EVERY = 0.25       # seconds between progress reports
 # A leaf examined costs about ten nodes expanded: measured 0.55 ms per examination against ~30 µs
@@ -28,6 +31,7 @@ EXAMINE_COST = 10
 # measured, rich and paper data) — short enough that a tree which finds the model in a few nodes
 # (the basis-pursuit order on rich data) is reached quickly, long enough that turns cost nothing.
 SLICE_WORK = 5000
+RUNNERS_UP = 2000               # scored leaves kept as runners-up (best first)
 
 
 def drive(trees, time_limit, progress, slices=None, work_limit=None):
@@ -108,3 +112,59 @@ def nothing_admissible(k, candidates, proven, seconds, nodes, n_leaves, work=0.0
                              + ("among all supports" if proven else f"found in {seconds:.1f} s")
                              + f" ({nodes:,} nodes, {n_leaves:,} supports scored"
                              + (f"; reasons: {why})" if why else ")"), k, proven, seconds, work)
+
+
+@dataclass
+class BnbState:
+    """The trees of a branch and bound that stopped before it was proven (``SearchResult.state``
+    or ``NoAdmissibleModel.state``): ``branch_and_bound(..., resume=state)`` goes on from there."""
+    trees: list
+    slices: list | None
+    seconds: float = 0.0
+
+    @property
+    def work(self) -> int:
+        return sum(t.work for t in self.trees)
+
+
+def drive_and_conclude(state: BnbState, time_limit, progress, work_limit) -> SearchResult:
+    """Drive the trees for up to ``work_limit`` more units (or ``time_limit`` more seconds), then
+    the result or the error, with the totals of every call so far."""
+    trees, s = state.trees, state.trees[0]
+    work_limit = check_real("work_limit", work_limit, positive=True, allow_none=True)
+    lower, proven, seconds, interrupted = drive(
+        trees, time_limit, progress, state.slices,
+        None if work_limit is None else state.work + work_limit)
+    state.seconds += seconds
+    # leaves dropped from a full queue were never examined: proven only if none could win
+    proven = proven and all(t.lower_dropped >= s.incumbent - s.tol for t in trees)
+    total = {name: sum(getattr(t, name) for t in trees)
+             for name in ("n_leaves", "n_degenerate", "nodes", "n_reducible")}
+    open_state = None if proven or interrupted else state
+    if s.winner is None and interrupted:
+        raise KeyboardInterrupt            # nothing to return: let the caller stop
+    if s.winner is None:
+        exc = nothing_admissible(s.k, s.candidates, proven, state.seconds, total["nodes"],
+                                 total["n_leaves"], state.work)
+        exc.state = open_state
+        raise exc
+    S = np.vstack([x for t in trees for x in t.pool_S])
+    sc = np.concatenate([x for t in trees for x in t.pool_s])
+    keep = np.argsort(sc, kind="stable")[:RUNNERS_UP]
+    sup, sc = S[keep], sc[keep]
+    w = s.winner
+    coef, nd = coef_on_support(s.A, s.b, w.support, s.scale_system)     # as the exhaustive path
+    null_dim = s.null_dim
+    if coef is not None:
+        w.coef, null_dim = coef, nd
+    seen = {c.support for c in s.candidates}
+    runners = [Candidate(tuple(int(j) for j in S), float(v)) for S, v in zip(sup, sc)
+               if tuple(int(j) for j in S) not in seen][:s.n_report]
+    cands = sorted(s.candidates, key=lambda c: c.score) + runners
+    res = SearchResult(w.support, w.coef, w.score, cands, total["n_leaves"],
+                       total["n_degenerate"], null_dim, sc, sup, total["n_reducible"])
+    res.method, res.proven, res.interrupted = "bnb", proven, interrupted
+    res.gap = max(0.0, w.score - lower)
+    res.nodes, res.seconds, res.work = total["nodes"], state.seconds, state.work
+    res.state = open_state
+    return res

@@ -10,6 +10,7 @@ from .._validate import check_choice, check_int, check_real
 from .admissibility import Admissibility
 from .balance import derivative_form, integral_form
 from .diagnostics import FitRecord, constant_force_trap, diagnose
+from .fitting import coef_on_support
 from .dissipation import dissipation_columns, dissipation_library, fold_scale, full_rayleigh, \
     norm_term, project, prune
 from ..symbolic.library import Library
@@ -283,8 +284,9 @@ class LagrangianSINDy(FittedModel):
         return ["zoh", "smooth"]
 
     def _fit(self, trajectories, scale_trajectories, passive, progress, hold, prepared=None,
-             backend=None):
-        """One fit with a given input hold; ``prepared`` = ``_prepare(trajectories)`` if done."""
+             backend=None, previous=None):
+        """One fit with a given input hold; ``prepared`` = ``_prepare(trajectories)`` if done;
+        ``previous``: the selection of the fit before with more dissipation terms (step 7)."""
         self.hold_ = hold
         forced = self._validate()
         lib = self.library
@@ -307,10 +309,21 @@ class LagrangianSINDy(FittedModel):
         # 5. support and k
         noise = (noise_model(bal, state_var, smoothing)
                  if state_var is not None and bal.per_sample else None)
-        sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
-                     scale_system=scale_system, max_terms=self.max_terms, noise=noise,
-                     progress=progress, time_limit=self.time_limit, backend=backend,
-                     effort=self.effort)
+        if previous is None:
+            sel = select(bal, forced, n_terms=self.n_terms, admissible=admissible,
+                         scale_system=scale_system, max_terms=self.max_terms, noise=noise,
+                         progress=progress, time_limit=self.time_limit, backend=backend,
+                         effort=self.effort)
+        else:   # friction terms dropped: k stays, the support is searched again (reweight.py)
+            sel, _ = reselect(bal, forced, previous, scale_system=scale_system,
+                              admissible=admissible, time_limit=self.time_limit,
+                              progress=progress, backend=backend)
+            kept, sel = sel is previous, copy.copy(sel)
+            sel.steps, sel.automatic, sel.unscored = (previous.steps, previous.automatic,
+                                                      previous.unscored)
+            refit = coef_on_support(bal.A, bal.b, sel.support, scale_system)[0] if kept else None
+            if refit is not None:                   # the kept support, fitted on this balance
+                sel.coef = refit
         coef = sel.coef
         # 6. errors in variables: re-weight, re-select (same k), correct for regressor noise
         if state_var is not None and bal.per_sample:
@@ -323,7 +336,7 @@ class LagrangianSINDy(FittedModel):
             if len(keep) < len(self._diss_active):
                 self._diss_active = [self._diss_active[j] for j in keep]
                 return self._fit(trajectories, scale_trajectories, passive, progress, hold,
-                                 prepared, backend)
+                                 prepared, backend, previous=sel)
         # 8. relative energy (passive, no scale record): the stated normalisation
         self.energy_scale_, self.normalised_by_ = "absolute", None
         if bal.passive and scale_system is None:

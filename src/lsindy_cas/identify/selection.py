@@ -48,6 +48,12 @@ scout stopped first, or the scan's ``AUTO_WORK`` is spent).  The k chosen is sea
 branch and bound (``time_limit`` seconds, or ``AUTO_WORK`` units without one) for its certificate,
 and the search says whether it was proven.
 
+When no k of the scan fits the data (below) and some scouts stopped undecided, their searches go on
+where they stopped (:class:`~lsindy_cas.identify.bnb.BnbState`), smallest k first, each round with
+twice the work of the one before, until one finds a model that fits, every k is decided or
+``AUTO_WORK`` is spent: a scout's first stretch is too short for some libraries (free swings of a
+damped double pendulum, 83 terms: the exact 8-term model needs 143 k units, a scout has 50 k).
+
 A k whose model fits the data to the noise (χ ≤ ``CHI_OK``) or, without a noise model, to the
 held-out floor (the relative held-out error below ``EXACT_CV``) ends the scan: more terms cannot
 fit better than exactly.
@@ -55,6 +61,7 @@ fit better than exactly.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from math import comb
 from typing import Callable
 
@@ -65,6 +72,8 @@ from .held_out import CV_FLOOR, chi_of, cv_error, fold_ids  # noqa: F401 (import
 from .bnb import SCORE_RESOLUTION, branch_and_bound, structure_of
 from .search import NoAdmissibleModel, SearchResult, best_subset, score_supports, visit
 from .selection_records import Selection, Step, Unscored
+from .k_choice import (CHI_MISS, CHI_OK, EXACT_CV, IMPROVEMENT, better,  # noqa: F401
+                       choose, fair, fits_data, gain)
 from .findings import UndeterminedError  # noqa: F401 (importable here)
 
 __all__ = ["Step", "Selection", "Unscored", "UndeterminedError", "select", "cv_error", "chi_of",
@@ -73,14 +82,6 @@ __all__ = ["Step", "Selection", "Unscored", "UndeterminedError", "select", "cv_e
 
 
 
-IMPROVEMENT = 2.0
-# χ of a correct model is ≈ 1 − k/m_eff in theory; measured 0.2–1.7 for the true energies of the
-# benchmark systems at σ = 1e-3 … 1e-1 (the noise estimate is good to ~20 %, and neighbouring rows
-# share smoothed noise).  Models missing a real term measured χ ≳ 40.
-CHI_OK = 2.0
-# A model whose χ exceeds this misses part of the data (the status's CHI_BAD): the scan does not
-# stop on it, and a beam's model this poor is checked by a scout at the same k.
-CHI_MISS = 10.0
 EXHAUSTIVE = 1_500_000
 BEAM = 2000
 MAX_VISITS = 2000          # beam: candidates examined for admissibility before giving up
@@ -94,33 +95,6 @@ SCOUT_WORK = 50_000
 # Automatic k: work of all the scouts of one scan together, and of the chosen k's certificate
 # without a time limit (~40–170 s at the rates above): a refusal never takes minutes per k.
 AUTO_WORK = 1_200_000
-# A held-out error below this (relative residual 1e-5) is a fit to the quadrature floor of clean
-# data: true energies measured 1e-18 (Acrobot, double pendulum, 2-10 ms samples), the best wrong
-# models of one term more 5e-8 - 8e-6 (Acrobot, 48 runs), so nothing of more terms can do better.
-EXACT_CV = 1e-10
-_T95 = {1: 6.31, 2: 2.92, 3: 2.35, 4: 2.13, 5: 2.02}   # one-sided 5 % t quantiles, by dof
-
-
-def _better(new: Step, old: Step) -> bool:
-    """Does ``new`` cut the held-out error of ``old`` by IMPROVEMENT, significantly over folds —
-    and, when the noise is known, also its residual in units of its own expected noise?"""
-    if not new.cv * IMPROVEMENT < old.cv:
-        return False
-    if np.isfinite(new.chi) and np.isfinite(old.chi) and not new.chi < old.chi:
-        return False
-    return _gain(new, old)
-
-
-def _gain(new: Step, old: Step) -> bool:
-    """Is the held-out error of ``new`` below that of ``old`` in a paired one-sided test over the
-    folds (5 %), by any factor?"""
-    if not new.cv < old.cv:
-        return False
-    d = np.log(old.cv_folds) - np.log(new.cv_folds)        # per-fold log improvement
-    if len(d) < 2:
-        return True
-    se = d.std(ddof=1) / np.sqrt(len(d))
-    return bool(d.mean() > _T95.get(len(d) - 1, 1.65) * se)
 
 
 class _Columns:
@@ -145,10 +119,11 @@ class _Columns:
 
 def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: Step | None,
               time_limit=None, automatic=False, work_left=AUTO_WORK, work_limit=None,
-              backend=None, scout_work=SCOUT_WORK):
+              backend=None, scout_work=SCOUT_WORK, resume=None):
     """Best admissible k-support, SearchResult in full indices: exhaustive up to EXHAUSTIVE
     supports; beyond, with ``automatic``, the beam from ``prev`` or else a branch-and-bound scout
-    (module notes), otherwise branch and bound.  Raises NoAdmissibleModel."""
+    (module notes), otherwise branch and bound — or, with ``resume`` (a scout's ``state``), that
+    search for ``work_limit`` more units.  Raises NoAdmissibleModel."""
     p = bal.A.shape[1]
     A, D = bal.A[:, cols.keep], bal.D[:, cols.keep]
     f_loc = cols.local(forced)
@@ -160,7 +135,10 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
     structure = _local_structure(admissible, p, cols)     # what the rules exclude before a fit
     kinetic = _local_kinetic(admissible, p, cols) if bal.b is not None else None
     res = None
-    if beam and automatic and can_extend:
+    if resume is not None:
+        res = branch_and_bound(A, bal.b, k, f_loc, resume=resume, time_limit=time_limit,
+                               progress=progress, work_limit=work_limit)
+    elif beam and automatic and can_extend:
         try:
             res = _beam(A, bal.b, D, k, prev.search, cols, adm, scale_system, structure=structure,
                         kinetic=kinetic)
@@ -183,10 +161,10 @@ def _search_k(bal, k, forced, cols, admissible, scale_system, progress, prev: St
                           kinetic=kinetic, backend=backend)
     res.support = cols.full(res.support)
     res.coef = cols.full_coef(res.coef, p)
-    for c in res.candidates:
-        c.support = cols.full(c.support)
-        if c.coef is not None:
-            c.coef = cols.full_coef(c.coef, p)
+    # copies: a search kept to go on with (``state``) still holds these in its own indices
+    res.candidates = [replace(c, support=cols.full(c.support),
+                              coef=None if c.coef is None else cols.full_coef(c.coef, p))
+                      for c in res.candidates]
     if res.supports is not None:
         res.supports = cols.keep[res.supports]
     return res, beam
@@ -287,6 +265,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         cv, per = cv_error(bal, res.support, folds)
         step = Step(int(n_terms), res.support, res.coef, res.score, cv, per, res,
                     chi=_chi(bal, res, noise))
+        _drop_states([step])
         return Selection(step.k, res.support, res.coef, res, [step], False, cols.excluded)
     scout_work, auto_work = SCOUT_WORK * effort, AUTO_WORK * effort
     k_lo = max(len(forced), 2 if bal.passive else 1)
@@ -295,6 +274,7 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         raise ValueError(f"max_terms = {max_terms} is smaller than the {k_lo} terms every model needs")
     steps, unscored, best, prev, fits, lowest = [], [], None, None, None, None
     work = 0.0                           # branch-and-bound work of the whole scan (AUTO_WORK)
+    stopped = {}                         # k -> the state of its scout that stopped undecided
     for k in range(k_lo, k_hi + 1):
         t0 = time.monotonic()
         try:
@@ -304,11 +284,13 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         except NoAdmissibleModel as exc:  # no admissible k-term model found: say so, try k + 1
             work += exc.work
             unscored.append(Unscored(k, str(exc), exc.proven, time.monotonic() - t0, exc.work))
+            if getattr(exc, "state", None) is not None:
+                stopped[k] = exc.state
             prev = None
             continue
         work += res.work
         step = _step(bal, k, res, beam, folds, noise)
-        if res.method == "beam" and not _fair(step):
+        if res.method == "beam" and not fair(step):
             # the beam only extends the best smaller models: a poor fit may be its blind spot
             try:
                 scout, _ = _search_k(bal, k, forced, cols, admissible, scale_system, progress,
@@ -322,24 +304,27 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
                 work += exc.work
         steps.append(step)
         prev = step
-        if fits is None and (step.chi <= CHI_OK or (not np.isfinite(step.chi)
-                                                    and step.cv <= EXACT_CV)):
+        if fits is None and fits_data(step):
             fits = step                  # the discrepancy principle: enough terms for the noise
-        if best is None or _better(step, best):
+        if best is None or better(step, best):
             best = step
-        if lowest is None or _gain(step, lowest):
+        if lowest is None or gain(step, lowest):
             lowest = step                # the scan goes on while more terms still help at all
         if step.search.interrupted or fits is not None:   # Ctrl-C, or a fit
             break
-        if k - max(best.k, lowest.k) >= 2 and _fair(best):
+        if k - max(best.k, lowest.k) >= 2 and fair(best):
             break
+    if fits is None and stopped and not any(st.search.interrupted for st in steps):
+        work = _deepen(bal, stopped, steps, unscored, forced, cols, admissible, scale_system,
+                       progress, noise, folds, time_limit, auto_work, work, scout_work)
+        best, fits = choose(steps)
     if best is None:
         open_k = [u.k for u in unscored if not u.proven]
         if open_k:                       # not a proof: the scouts stopped before finding one
             raise UndeterminedError(
                 f"no model found for any number of terms {k_lo}..{k_hi}: the searches of k = "
-                + ", ".join(map(str, open_k)) + f" stopped undecided (a scout's {scout_work:,.0f} "
-                f"units of work each, {auto_work:,.0f} for the scan) — give the number of terms "
+                + ", ".join(map(str, open_k)) + f" stopped undecided ({work:,.0f} units of work, "
+                f"{auto_work:,.0f} for the scan) — give the number of terms "
                 "(n_terms / --terms), prior terms, a smaller library or a larger search effort "
                 f"(effort / --effort, now {effort:g}) ("
                 + "; ".join(str(u) for u in unscored[:3]) + ")")
@@ -352,8 +337,16 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
     if best.search is not None and (best.search.method == "beam" or not best.search.proven):
         best = _certify(bal, best, steps, forced, cols, admissible, scale_system, progress, noise,
                         folds, time_limit, auto_work - work, backend, scout_work)
+    _drop_states(steps)
     return Selection(best.k, best.support, best.coef, best.search, steps, True, cols.excluded,
                      unscored)
+
+
+def _drop_states(steps) -> None:
+    """The fitted model keeps the searches' results, not their trees (up to ~0.5 GB each)."""
+    for st in steps:
+        if st.search is not None:
+            st.search.state = None
 
 
 def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress, noise, folds,
@@ -364,10 +357,10 @@ def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress,
     missed; the first search's when it finds none."""
     if time_limit is None and work_left < scout_work:
         return step                      # the scan spent its budget: no certificate
-    try:
+    try:                                 # a scout's search goes on where it stopped
         res, _ = _search_k(bal, step.k, forced, cols, admissible, scale_system, progress, None,
                            time_limit, work_limit=None if time_limit is not None else work_left,
-                           backend=backend)
+                           backend=backend, resume=getattr(step.search, "state", None))
     except (NoAdmissibleModel, KeyboardInterrupt):
         return step
     if res.score > step.score + SCORE_RESOLUTION:
@@ -378,15 +371,44 @@ def _certify(bal, step, steps, forced, cols, admissible, scale_system, progress,
     return new
 
 
+def _deepen(bal, stopped, steps, unscored, forced, cols, admissible, scale_system, progress,
+            noise, folds, time_limit, auto_work, work, scout_work) -> float:
+    """No k of the scan fits the data and some scouts stopped undecided: go on with their
+    searches, smallest k first, each round with twice the work of the round before, until one
+    finds a model that fits (the scan's answer), every one is decided or the scan's work is
+    spent.  ``steps`` and ``unscored`` are updated in place; returns the scan's work."""
+    chunk = scout_work
+    while stopped and work < auto_work:
+        for k in sorted(stopped):
+            if work >= auto_work:
+                break
+            state, u = stopped.pop(k), next(u for u in unscored if u.k == k)
+            before, t0 = state.work, time.monotonic()
+            try:
+                res, _ = _search_k(bal, k, forced, cols, admissible, scale_system, progress,
+                                   None, time_limit, work_limit=min(chunk, auto_work - work),
+                                   resume=state)
+            except NoAdmissibleModel as exc:
+                work += exc.work - before
+                unscored[unscored.index(u)] = Unscored(
+                    k, str(exc), exc.proven, u.seconds + time.monotonic() - t0, exc.work)
+                if getattr(exc, "state", None) is not None:
+                    stopped[k] = exc.state
+                continue
+            work += res.work - before
+            unscored.remove(u)
+            step = _step(bal, k, res, False, folds, noise)
+            steps.append(step)
+            steps.sort(key=lambda st: st.k)
+            if fits_data(step) or res.interrupted:
+                return work
+        chunk *= 2
+    return work
+
+
 def _step(bal, k, res, beam, folds, noise) -> Step:
     cv, per = cv_error(bal, res.support, folds)
     return Step(k, res.support, res.coef, res.score, cv, per, res, beam, _chi(bal, res, noise))
-
-
-def _fair(step: Step) -> bool:
-    """Does the step's model explain the data up to a missing detail (χ ≤ CHI_MISS)?  Without a
-    noise model there is no scale to judge it by, and it counts as fair."""
-    return not step.chi > CHI_MISS
 
 
 def _chi(bal, res, noise) -> float:
