@@ -9,15 +9,16 @@ import numpy as np
 from .selection_records import Step
 
 __all__ = ["IMPROVEMENT", "CHI_OK", "CHI_MISS", "EXACT_CV", "better", "gain", "fair",
-           "fits_data", "choose"]
+           "fits_data", "fits",
+           "choose"]
 
 IMPROVEMENT = 2.0
 # χ of a correct model is ≈ 1 − k/m_eff in theory; measured 0.2–1.7 for the true energies of the
 # benchmark systems at σ = 1e-3 … 1e-1 (the noise estimate is good to ~20 %, and neighbouring rows
 # share smoothed noise).  Models missing a real term measured χ ≳ 40.
 CHI_OK = 2.0
-# A model whose χ exceeds this misses part of the data (the status's CHI_BAD): the scan does not
-# stop on it, and a beam's model this poor is checked by a scout at the same k.
+# A model whose χ exceeds this misses part of the data: the scan does not stop on it, a beam's
+# model this poor is checked by a scout at the same k, and the verdict (status.CHI_BAD) calls it so.
 CHI_MISS = 10.0
 # A held-out error below this (relative residual 1e-5) is a fit to the quadrature floor of clean
 # data: true energies measured 1e-18 (Acrobot, double pendulum, 2-10 ms samples), the best wrong
@@ -60,9 +61,15 @@ def choose(steps) -> tuple:
 
 
 def fits_data(step: Step) -> bool:
-    """Does the step's model fit the data to the noise (χ ≤ CHI_OK) or, without a noise model,
-    to the held-out floor of clean data (EXACT_CV)?"""
-    return bool(step.chi <= CHI_OK or (not np.isfinite(step.chi) and step.cv <= EXACT_CV))
+    """Does the step's model fit the data to the noise or the clean-data floor (:func:`fits`)?"""
+    return fits(step.chi, step.cv)
+
+
+def fits(chi: float, held_out_error: float) -> bool:
+    """Does a model fit the data as well as any can: to the noise (χ ≤ CHI_OK) or to the held-out
+    floor of clean data (EXACT_CV)?  The scan stops there, and the verdict does not ask for the
+    smaller k's a search left undecided."""
+    return bool((np.isfinite(chi) and chi <= CHI_OK) or held_out_error <= EXACT_CV)
 
 
 def fair(step: Step) -> bool:
