@@ -23,7 +23,8 @@ coefficients, of the damping coefficients (b_i/2), the status, the number of "co
 quantities the diagnostics report, the identified H against MuJoCo's ``mjData.energy`` (largest
 deviation after removing the mean, over its range) and the seconds of the fit.  The truth is
 :func:`~lsindy_cas.plants.mujoco_chain.energy_terms` (from the compiled model; the tests derive it
-by hand too).  ``--auto-k``: also one double seed with the number of terms chosen automatically.
+by hand too).  ``--auto-k``: also double seed 0 with the number of terms chosen automatically
+(the 20-term library, and the 83-term one unless ``--no-full``).
 
     python benchmarks/bench_passive_damping.py [OUT] [--quick] [--seeds N] [--no-full] [--auto-k]
 
@@ -134,7 +135,8 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="one seed, no full library")
     parser.add_argument("--no-full", action="store_true", help="skip the 83-term library (minutes)")
     parser.add_argument("--auto-k", action="store_true",
-                        help="also the double, seed 0, with the number of terms chosen automatically")
+                        help="also the double, seed 0, with the number of terms chosen automatically "
+                        "(both libraries unless --no-full)")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds must be >= 1, got {args.seeds}")
@@ -145,6 +147,8 @@ def main(argv=None):
         jobs.append(("double-full", 0, False))
     if args.auto_k:
         jobs.append(("double", 0, True))
+        if not (args.quick or args.no_full):
+            jobs.append(("double-full", 0, True))
     started = time.perf_counter()
     rows = []
     for case, seed, auto in jobs:
