@@ -12,7 +12,7 @@ is the only thing that depends on the clock.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,10 +34,12 @@ SLICE_WORK = 5000
 RUNNERS_UP = 2000               # scored leaves kept as runners-up (best first)
 
 
-def drive(trees, time_limit, progress, slices=None, work_limit=None):
+def drive(trees, time_limit, progress, slices=None, work_limit=None, cursor=None):
     """Advance the trees in turn (``slices[i]`` slices of SLICE_WORK units each for tree i,
     default one), sharing the incumbent, until one is exhausted, ``time_limit`` seconds pass or
-    ``work_limit`` units are spent (module notes).
+    ``work_limit`` units are spent (module notes).  ``cursor`` ([tree index, work its slice ends
+    at or None], updated in place) lets a later call go on with the turn a limit cut short, so
+    that a search stopped and driven again expands the same nodes as one that never stopped.
 
     Returns (lower, proven, seconds, interrupted).
     """
@@ -45,23 +47,29 @@ def drive(trees, time_limit, progress, slices=None, work_limit=None):
     deadline = np.inf if time_limit is None else t0 + time_limit
     budget = np.inf if work_limit is None else float(work_limit)
     state, interrupted, reported = "open", False, t0
+    per = slices or [1] * len(trees)
+    cursor = [0, None] if cursor is None else cursor
 
     def spent():
         return sum(t.work for t in trees)
 
     try:
         while state == "open":
-            for s, n in zip(trees, slices or [1] * len(trees)):
-                best = min(trees, key=lambda t: t.incumbent)
-                s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
-                state = s.advance(deadline, s.work + min(n * SLICE_WORK, budget - spent()))
-                now = time.monotonic()
-                if progress is not None and now - reported >= REPORT_EVERY:
-                    _report(progress, trees, now - t0)
-                    reported = now
-                if state != "open" or now > deadline or spent() >= budget:
-                    break
-            if state == "open" and (time.monotonic() > deadline or spent() >= budget):
+            i, end = cursor
+            s = trees[i]
+            if end is not None and s.work >= end:      # this turn is over: the next tree's
+                cursor[:] = [(i + 1) % len(trees), None]
+                continue
+            if end is None:
+                end = cursor[1] = s.work + per[i] * SLICE_WORK
+            best = min(trees, key=lambda t: t.incumbent)
+            s.incumbent, s.winner, s.null_dim = best.incumbent, best.winner, best.null_dim
+            state = s.advance(deadline, min(end, s.work + budget - spent()))
+            now = time.monotonic()
+            if progress is not None and now - reported >= REPORT_EVERY:
+                _report(progress, trees, now - t0)
+                reported = now
+            if state == "open" and (now > deadline or spent() >= budget):
                 state = "stopped"
     except KeyboardInterrupt:
         interrupted = True
@@ -121,6 +129,7 @@ class BnbState:
     trees: list
     slices: list | None
     seconds: float = 0.0
+    cursor: list = field(default_factory=lambda: [0, None])   # drive's turn, to go on with
 
     @property
     def work(self) -> int:
@@ -134,7 +143,7 @@ def drive_and_conclude(state: BnbState, time_limit, progress, work_limit) -> Sea
     work_limit = check_real("work_limit", work_limit, positive=True, allow_none=True)
     lower, proven, seconds, interrupted = drive(
         trees, time_limit, progress, state.slices,
-        None if work_limit is None else state.work + work_limit)
+        None if work_limit is None else state.work + work_limit, state.cursor)
     state.seconds += seconds
     # leaves dropped from a full queue were never examined: proven only if none could win
     proven = proven and all(t.lower_dropped >= s.incumbent - s.tol for t in trees)
