@@ -238,12 +238,13 @@ def test_a_scan_with_only_undecided_ks_says_so(rng, monkeypatch):
 
 
 def test_undecided_scouts_go_on_until_a_model_fits(monkeypatch):
-    """When no k of the scan fits and scouts stopped undecided, their searches go on where they
-    stopped (smallest k first, doubling the work) until one finds the model that fits exactly:
-    here every scout gets one unit of work, and the exact 3-term model still comes out."""
+    """While no model explains the data and scouts stopped undecided, their searches go on where
+    they stopped (smallest k first, doubling the work) until one finds the model that fits
+    exactly: here every scout gets one unit of work, and the exact 3-term model still comes out."""
     bal = _synthetic(np.random.default_rng(0), sigma=0.0)
     full = select(bal, [])
     monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+    monkeypatch.setattr(selection, "fair", lambda step: step.cv < 1e-6)   # 2-term model: a miss
     monkeypatch.setattr(selection, "SCOUT_WORK", 1)
     monkeypatch.setattr(selection, "_beam", lambda *a, **kw: (_ for _ in ()).throw(
         selection.NoAdmissibleModel("no extension", a[3], False)))
@@ -260,3 +261,26 @@ def test_undecided_scouts_go_on_until_a_model_fits(monkeypatch):
     assert all(u.k > 3 and not u.proven for u in auto.unscored)    # above the fit: left open
     assert all(getattr(st.search, "state", None) is None for st in auto.steps)  # trees dropped
 
+
+def test_undecided_k_far_above_a_model_that_explains_the_data_get_no_more_work(monkeypatch):
+    """Above a model that explains the data, only the undecided k up to two past it (where the
+    scan looks) get more work; the others stay listed as undecided.  Here the 1-term model counts
+    as fair (no noise model), so k = 2, 3 go on and the exact 3-term model comes out, while
+    k = 4 … 8 are left."""
+    bal = _synthetic(np.random.default_rng(0), sigma=0.0)
+    monkeypatch.setattr(selection, "EXHAUSTIVE", 0)
+    monkeypatch.setattr(selection, "SCOUT_WORK", 1)
+    monkeypatch.setattr(selection, "_beam", lambda *a, **kw: (_ for _ in ()).throw(
+        selection.NoAdmissibleModel("no extension", a[3], False)))
+    real, resumed = selection.branch_and_bound, []
+
+    def spy(*args, resume=None, work_limit=None, **kw):
+        if resume is not None and work_limit is not None and work_limit < 1000:
+            resumed.append(args[2])                # a round of the scan, not the certificate
+        return real(*args, resume=resume, work_limit=work_limit, **kw)
+
+    monkeypatch.setattr(selection, "branch_and_bound", spy)
+    auto = select(bal, [])
+    assert (auto.k, auto.support) == (3, (0, 1, 2))
+    assert resumed and max(resumed) <= 3
+    assert [u.k for u in auto.unscored] == [4, 5, 6, 7, 8]

@@ -48,8 +48,9 @@ scout stopped first, or the scan's ``AUTO_WORK`` is spent).  The k chosen is sea
 branch and bound (``time_limit`` seconds, or ``AUTO_WORK`` units without one) for its certificate,
 and the search says whether it was proven.
 
-When no k of the scan fits the data (below) and scouts stopped undecided, their searches go on
-where they stopped (:class:`~lsindy_cas.identify.bnb.BnbState`: nothing is searched twice),
+When no k of the scan fits the data (below) and scouts stopped undecided — up to two k past the
+best, or at any k while no model explains the data (χ ≤ ``CHI_MISS``) — their searches go on where
+they stopped (:class:`~lsindy_cas.identify.bnb.BnbState`: nothing is searched twice),
 smallest k first, each round with twice the work of the one before, until one finds a model that
 fits, every k is decided or ``AUTO_WORK`` is spent: a scout's first stretch is a guess, not a
 measure of the k.
@@ -321,6 +322,12 @@ def select(bal: EnergyBalance, forced, *, n_terms: int | None = None, admissible
         if k - max(best.k, lowest.k) >= 2 and fair(best) and (np.isfinite(best.chi)
                                                               or not bal.passive):
             break
+    # more work for the undecided k up to two past the best (where a driven scan looks), or for
+    # all of them while no model explains the data (passive double pendulum, 83 terms, exact at
+    # k = 8: k = 10 and 11 took 2 of 4 minutes and found nothing better)
+    if best is not None and fair(best):
+        top = max(best.k, lowest.k) + 2
+        stopped = {k: st for k, st in stopped.items() if k <= top}
     if fits is None and stopped and not any(st.search.interrupted for st in steps):
         work = _deepen(bal, stopped, steps, unscored, forced, cols, admissible, scale_system,
                        progress, noise, folds, time_limit, auto_work, work, scout_work)
