@@ -15,10 +15,14 @@ Protocols
 Methods
   paper  derivative form Γξ = P with accelerations by finite differences of the noisy q̇ (what the
          paper's method has to do without exact accelerations), k given
-  raw    ours without denoising: integral form, noise estimated, errors-in-variables correction,
-         k chosen automatically
-  ours   ours with denoising (likelihood-chosen smoothing) — the default of LagrangianSINDy
-  ours_k ours with k given (separates support errors from k-selection errors)
+  raw     ours without denoising: integral form, noise estimated, errors-in-variables correction,
+          k chosen automatically
+  balance ours with the energy balance alone (``refinement="never"``)
+  ours    the default of LagrangianSINDy: denoising (likelihood-chosen smoothing), k chosen
+          automatically, and the prediction-error refinement where the balance leaves only a
+          coefficient open (``refinement="auto"``; kept when the refined fit is determined)
+  ours_k  ours with k given (separates support errors from k-selection errors)
+  refined ours, refined by prediction error on every fit (``refinement="always"``)
 
 Usage::
 
@@ -50,7 +54,7 @@ from lsindy_cas.data.smoothing import add_noise, finite_difference  # noqa: E402
 LEVELS = (0.0, 1e-8, 1e-6, 1e-4, 1e-3, 1e-2, 5e-2, 1e-1)
 SYSTEMS = ("spherical", "double", "cart")
 PROTOCOLS = ("paper", "rich")
-METHODS = ("paper", "raw", "ours", "ours_k", "refined")   # refined: ours, then model.refine
+METHODS = ("paper", "raw", "balance", "ours", "ours_k", "refined")
 TOL = 0.05
 # Rich protocol: input amplitude per system (N or N·m) — an experiment design choice, not a
 # method parameter: enough to move each system well without flinging it around.
@@ -118,6 +122,10 @@ def run_one(job):
                     "method": method, "exact_support": exact, "max_rel_error": err, "k": k,
                     "k_true": setup.n_terms, "status": status, "status_reasons": reasons,
                     "success": bool(exact and err <= TOL), "seconds": time.perf_counter() - t0,
+                    # the coefficients are the prediction-error refinement's: automatically
+                    # ("auto") or on request ("always"); "tried": automatic refinement did not
+                    # settle the fit, the balance's kept; None: not refined
+                    "refined": _refined(model) if status != "refused" else None,
                     # the status's relative standard errors: propagated (noise model with the
                     # rows' correlations) and jackknife; None where not computed
                     "relative_std": rel_std,
@@ -125,6 +133,18 @@ def run_one(job):
                     # own coef_std_ (refined: Gauss-Newton; otherwise the jackknife)
                     "coef_errors": coef_errors})
     return out
+
+
+def _refined(model):
+    """"auto"/"always": the coefficients are the refinement's; "tried": automatic refinement
+    tried, the balance's fit kept; None: no refinement."""
+    from lsindy_cas.identify.refine import current_refinement
+    info = current_refinement(model)
+    if info is None:
+        return None
+    if not info["applied"]:
+        return "tried" if info.get("auto") else None
+    return "auto" if info.get("auto") else "always"
 
 
 def _coef_errors(model, truth):
@@ -142,12 +162,11 @@ def _fit(method, lib, setup, noisy):
         data = [finite_difference(tr) for tr in noisy]
         return LagrangianSINDy(lib, n_terms=setup.n_terms, prior=setup.prior,
                                form="derivative").fit(data)
-    if method == "refined":               # the energy balance, then prediction-error refinement
-        model = LagrangianSINDy(lib, prior=setup.prior).fit(noisy)
-        return model.refine(noisy)
+    refinement = {"balance": "never", "refined": "always"}.get(method, "auto")
     k = setup.n_terms if method == "ours_k" else None
     smoothing = "none" if method == "raw" else "auto"
-    return LagrangianSINDy(lib, n_terms=k, prior=setup.prior, smoothing=smoothing).fit(noisy)
+    return LagrangianSINDy(lib, n_terms=k, prior=setup.prior, smoothing=smoothing,
+                           refinement=refinement).fit(noisy)
 
 
 def summarise(rows):
@@ -210,6 +229,18 @@ def status_lines(rows) -> list:
         lines.append(f"| {method} | {ok}/{n} | {c['false_alarms']} of {c['passing']} | "
                      f"{c['false_alarms_1pct']} of {c['within_1pct']} | {c['silent_failures']} of "
                      f"{c['failing']} | {c['refused']} | {cal} |")
+    lines += ["", "Seconds per fit (identification only); 'refined': fits whose coefficients are "
+              "the prediction-error refinement's; 'tried': automatic refinement that left the "
+              "fit undetermined (the balance's fit kept).", "",
+              "| method | median s | max s | refined | tried |", "|---|---|---|---|---|"]
+    for method in METHODS:
+        mine = [r for r in rows if r["method"] == method]
+        if mine:
+            sec = [r["seconds"] for r in mine]
+            n_ref = sum(r.get("refined") in ("auto", "always") for r in mine)
+            n_tried = sum(r.get("refined") == "tried" for r in mine)
+            lines.append(f"| {method} | {np.median(sec):.2f} | {max(sec):.2f} | "
+                         f"{n_ref}/{len(sec)} | {n_tried} |")
     lines.append("")
     for r in rows:
         if r["method"] == "paper" or r.get("status") in (None, "refused"):
@@ -233,7 +264,7 @@ def markdown(rows, levels) -> str:
              head, "|" + "---|" * (3 + len(levels))]
     ks = {}
     for r in rows:
-        if r["method"] in ("raw", "ours"):
+        if r["method"] in ("raw", "balance", "ours"):
             key = (r["system"], r["protocol"], r["method"], r["sigma"])
             hit, n = ks.get(key, (0, 0))
             ks[key] = (hit + (r["k"] == r["k_true"]), n + 1)
@@ -246,10 +277,11 @@ def markdown(rows, levels) -> str:
             else:
                 cells.append("")
         lines.append(f"| {k[0]} | {k[1]} | {k[2]} | " + " | ".join(cells) + " |")
-    lines += ["", "Automatic k (methods raw, ours): runs in which the chosen k is the true one.", "",
+    lines += ["", "Automatic k (methods raw, balance, ours): runs in which the chosen k is the true "
+              "one.", "",
               head, "|" + "---|" * (3 + len(levels))]
     for k in keys:
-        if k[2] in ("raw", "ours"):
+        if k[2] in ("raw", "balance", "ours"):
             cells = [f"{ks[(*k, s)][0]}/{ks[(*k, s)][1]}" if (*k, s) in ks else "" for s in levels]
             lines.append(f"| {k[0]} | {k[1]} | {k[2]} | " + " | ".join(cells) + " |")
     return "\n".join(lines + status_lines(rows))
@@ -265,7 +297,8 @@ def plot(rows, levels, path: Path):
     fig, axes = plt.subplots(len(protocols), len(systems_), figsize=(4 * len(systems_), 3.2 * len(protocols)),
                              squeeze=False, sharey=True)
     x = np.arange(len(levels))
-    colours = dict(zip(METHODS, ("tab:gray", "tab:orange", "tab:blue", "tab:green", "tab:purple")))
+    colours = dict(zip(METHODS, ("tab:gray", "tab:orange", "tab:cyan", "tab:blue", "tab:green",
+                                 "tab:purple")))
     for i, prot in enumerate(protocols):
         for j, name in enumerate(systems_):
             ax = axes[i, j]
@@ -297,7 +330,7 @@ def main(argv=None) -> int:
     p.add_argument("--levels", default=",".join(f"{s:g}" for s in LEVELS), help="noise σ list")
     p.add_argument("--systems", default=",".join(SYSTEMS))
     p.add_argument("--protocols", default=",".join(PROTOCOLS))
-    p.add_argument("--methods", default=",".join(METHODS[:4]))
+    p.add_argument("--methods", default="paper,raw,ours,ours_k")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--out", default=str(RESULTS), help="output directory")
     p.add_argument("--figures", default=str(FIGURES),

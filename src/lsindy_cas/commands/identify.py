@@ -58,8 +58,8 @@ def run(args) -> int:
             raise ValueError("--dissipation needs the all-windows integral form: drop --window")
     trajs = load_trajectories(args.trajectories, coords)
     scale = load_trajectories(args.scale, coords) if args.scale else None
-    if args.refine:
-        from ..identify.refine import check_uniform
+    if args.refine:                 # asked for: uneven runs are bad input (without it, the
+        from ..identify.refine import check_uniform     # automatic refinement skips them)
         check_uniform(trajs, "--refine")
     if args.form == "derivative" and any(tr.qdd is None for tr in trajs):
         raise ValueError("--form derivative needs accelerations (<q>_ddot columns) in every "
@@ -74,21 +74,24 @@ def run(args) -> int:
     model = LagrangianSINDy(lib, n_terms=args.terms, prior=split(args.prior), form=args.form,
                             window=args.window, smoothing=args.smoothing,
                             max_terms=args.max_terms, hold=args.hold, dissipation=dissipation,
-                            time_limit=args.time_limit, effort=args.effort)
+                            time_limit=args.time_limit, effort=args.effort,
+                            refinement=("always" if args.refine else "never" if args.no_refine
+                                        else "auto"))
     from ..progress import ProgressBar
     from ..identify.selection import UndeterminedError
     try:
         with ProgressBar("searching supports", unit="supports") as bar:
+            def notify(message):    # the refinement (seconds to a minute): said before it starts
+                bar.close()
+                print(message, file=sys.stderr, flush=True)
             model.fit(trajs, scale, passive=True if args.passive else None, progress=bar,
-                      client=client)
+                      client=client, notify=notify)
     except UndeterminedError as exc:    # the search ran: the data, not the options, fall short
         msg = " ".join(str(exc).split())
         print(f"lsindy identify: the data do not determine the model: {msg}", file=sys.stderr)
         return EXIT_UNDETERMINED
     if client is not None:
         client.close()
-    if args.refine:
-        model.refine(trajs)         # the printout and --json then show the refined model
     res = model.search_
     if res.method == "beam":        # automatic k: the one-term extensions of smaller models
         print("search not proven: support found among the one-term extensions of the best "
@@ -110,18 +113,29 @@ def run(args) -> int:
         model.save(args.json)
         print(f"model written to {args.json}")
     if not model.ok_:
-        from ..identify import findings as F
-        from ..identify.findings import code_of
-        if not args.refine and any(code_of(r) in (F.STD_PROPAGATED, F.STD_JACKKNIFE)
-                                   for r in model.status_reasons_):
-            # measured: benchmarks/results/noise_refined.md (the paper's run, sigma = 1e-3, 60
-            # fits: 59 ok refined, 20 from the balance alone; no refined fit wrongly ok)
-            print("hint: the energy balance leaves a coefficient undetermined; --refine fits the "
-                  "coefficients by prediction error and judges them by its own standard errors")
+        hint = _refinement_hint(model, args)
+        if hint:
+            print(f"hint: {hint}")
         print(f"lsindy identify: the data do not determine the model: {model.status_reasons_[0]}",
               file=sys.stderr)
         return EXIT_UNDETERMINED
     return 0
+
+
+def _refinement_hint(model, args) -> str | None:
+    """What the user can learn about the prediction-error refinement of an undetermined fit."""
+    info = getattr(model, "refinement_", None)
+    if isinstance(info, dict) and info.get("auto") and not info.get("applied"):
+        return ("the energy balance leaves a coefficient undetermined and the automatic "
+                f"prediction-error refinement did not settle it: {info.get('outcome')}")
+    if args.no_refine:
+        from ..identify.status import open_coefficient
+        if open_coefficient(model.status_, model.status_reasons_) is not None:
+            # measured: benchmarks/results/noise_refined.md (the paper's run, sigma = 1e-3)
+            return ("the energy balance leaves a coefficient undetermined; without --no-refine "
+                    "the coefficients are then refined by prediction error and judged by its "
+                    "own standard errors")
+    return None
 
 
 def add_to(sub) -> None:
@@ -146,10 +160,15 @@ def add_to(sub) -> None:
                        help='candidate terms of the Rayleigh dissipation function R over <q>_dot, '
                        'e.g. "theta_dot**2,Abs(x_dot)" (friction forces -dR/dq_dot; terms the '
                        "data do not support come out zero)")
-    ident.add_argument("--refine", action="store_true",
-                       help="then refine the coefficients of H and R on the chosen support by "
-                       "prediction error over the training runs (multiple shooting; evenly "
-                       "sampled runs; the normalisation kept)")
+    refine = ident.add_mutually_exclusive_group()
+    refine.add_argument("--refine", action="store_true",
+                        help="always refine the coefficients of H and R on the chosen support by "
+                        "prediction error over the training runs (multiple shooting; evenly "
+                        "sampled runs; the normalisation kept).  Default: only when the energy "
+                        "balance leaves a coefficient open (its standard error too large), and "
+                        "kept when the refined coefficients are determined")
+    refine.add_argument("--no-refine", action="store_true",
+                        help="the energy balance alone: no prediction-error refinement")
     ident.add_argument("--form", choices=["auto", "derivative", "integral"], default="auto",
                        help="energy-balance form (auto: derivative if files carry <q>_ddot)")
     ident.add_argument("--smoothing", choices=["auto", "none"], default="auto",

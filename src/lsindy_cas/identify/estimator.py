@@ -18,7 +18,7 @@ from ..mechanics.euler_lagrange import simulate_ode
 from .fitted import FittedModel
 from .reweight import reselect
 from .selection import select
-from .status import assess
+from .status import assess, open_coefficient
 from .standard_errors import coefficient_errors
 from ..data.smoothing import force_switches, smooth
 from .uncertainty import energy_variance, noise_model, row_gradients, sample_weights
@@ -31,6 +31,7 @@ __all__ = ["LagrangianSINDy"]
 _FORMS = ("auto", "derivative", "integral")
 _SMOOTHING = ("auto", "none")
 _HOLDS = ("auto", "zoh", "smooth")
+_REFINEMENTS = ("auto", "always", "never")
 # Errors in variables (``_refine``): the sample weights depend on the coefficients they weight, so
 # weights and coefficients are updated in turn, a fixed number of passes (no tolerance in the units
 # of the data).  The support may be re-selected on the weighted balance only in the first
@@ -88,6 +89,16 @@ class LagrangianSINDy(FittedModel):
         Automatic k: a factor on the work the scan may spend (per scout and in all): default 1
         (a refusal within about a minute per k); more for a large library whose scouts stop
         undecided (the refusal says so).  The same stopping points on every machine.
+    refinement : {"auto", "always", "never"}
+        Prediction-error refinement of the coefficients on the chosen support
+        (:meth:`refine`, :func:`lsindy_cas.identify.refine.refine_model`) after the verdict.
+        "auto" (default): only when the one finding against the fit is that the energy balance
+        leaves a coefficient open (its standard error too large, rule 7 of
+        :mod:`lsindy_cas.identify.status`); the refined fit is kept when its verdict on its own
+        standard errors is "ok", else the balance's fit stays as it was.  Runs that cannot be
+        refined (not evenly sampled, …) are left to the balance.  Either way ``refinement_``
+        records what was tried (``"auto": True``).  "always": refine every fit, as ``refine``
+        does (runs must be evenly sampled).  "never": the energy balance alone.
 
     Attributes (after ``fit``)
     --------------------------
@@ -117,16 +128,19 @@ class LagrangianSINDy(FittedModel):
                                   H, L and R up to one common factor, fixed by ``normalised_by_``)
     normalised_by_ : str or None  relative energy: the term whose coefficient is set to 1 (the
                                   first kinetic prior term, else the first kinetic support term)
+    refinement_ : dict            present when a prediction-error refinement was applied or tried:
+                                  what was done (``"applied"``; ``"auto"`` when automatic, with
+                                  ``"balance_open"``, and ``"outcome"`` when not applied)
     """
 
     def __init__(self, library: Library, *, n_terms: int | None = None, prior=(), form: str = "auto",
                  window: int | None = None, smoothing: str = "auto", max_terms: int | None = None,
                  hold: str = "auto", dissipation=None, time_limit: float | None = None,
-                 effort: float = 1.0):
+                 effort: float = 1.0, refinement: str = "auto"):
         self.library, self.n_terms, self.prior, self.form = library, n_terms, prior, form
         self.window, self.smoothing, self.max_terms = window, smoothing, max_terms
         self.hold, self.dissipation, self.time_limit = hold, dissipation, time_limit
-        self.effort = effort
+        self.effort, self.refinement = effort, refinement
 
     # ------------------------------------------------------------------ fitting
     def _validate(self):
@@ -152,6 +166,7 @@ class LagrangianSINDy(FittedModel):
             raise ValueError("dissipation needs the all-windows integral form: leave window unset")
         check_real("time_limit", self.time_limit, positive=True, allow_none=True)
         check_real("effort", self.effort, positive=True)
+        check_choice("refinement", self.refinement, _REFINEMENTS)
         return sorted(set(forced))
 
     def _form(self, trajectories) -> str:
@@ -202,7 +217,7 @@ class LagrangianSINDy(FittedModel):
         return None if var is None else [np.sqrt(v) for v in var]
 
     def fit(self, trajectories, scale_trajectories=None, passive=None,
-            progress=None, client=None) -> "LagrangianSINDy":
+            progress=None, client=None, notify=None) -> "LagrangianSINDy":
         """Identify the energy, Lagrangian and equations of motion.
 
         Parameters
@@ -219,19 +234,27 @@ class LagrangianSINDy(FittedModel):
         client : dask.distributed.Client, optional
             Search the supports on this Dask cluster (:mod:`~lsindy_cas.identify.distributed`,
             :mod:`~lsindy_cas.identify.distributed_bnb`); the same answer as in process.
+        notify : callable ``(message)``, optional
+            Told in one line before a step that ``progress`` does not cover starts: the
+            prediction-error refinement (``refinement``), e.g. to print it.
         """
         backend = None
         if client is not None:
             from .backend import DaskBackend
             backend = DaskBackend(client)
         self._validate()
+        for name in ("refinement_", "refine_result_"):     # a refit's own refinement, if any
+            self.__dict__.pop(name, None)
         self._diss_active = None if self._diss_lib is None else list(range(len(self._diss_lib)))
         coords = self.library.coords.names
         runs = as_trajectories(trajectories, coords)
+        if self.refinement == "always":                     # bad input before the search
+            from .refine import check_uniform
+            check_uniform(runs)
         holds = self._holds(runs)
         if len(holds) == 1:
-            return self._fit(runs, scale_trajectories, passive, progress, holds[0],
-                             backend=backend)._assess()
+            self._fit(runs, scale_trajectories, passive, progress, holds[0], backend=backend)
+            return self._assess()._refinement(runs, notify)
         # A force that changes at most samples: a smooth force sampled, or a held one changing every
         # sample.  The data decide: the wrong work integral leaves a systematic residual.  The
         # smoothing does not depend on the hold, so both trials share it.
@@ -252,7 +275,7 @@ class LagrangianSINDy(FittedModel):
         self.hold_errors_ = {m.hold_: m.diagnostics_.held_out_error for m in trials}
         self.hold_errors_.update({h: float("inf") for h in failed})
         self.diagnostics_.hold_errors = self.hold_errors_
-        return self._assess()
+        return self._assess()._refinement(runs, notify)
 
     def _assess(self) -> "LagrangianSINDy":
         """The one verdict on the fit (:func:`.status.assess`): ``status_``, ``status_reasons_``,
@@ -265,6 +288,68 @@ class LagrangianSINDy(FittedModel):
         self.status_, self.status_reasons_ = d.status, list(d.status_reasons)
         del self._record
         return self
+
+    def _refinement(self, runs, notify=None) -> "LagrangianSINDy":
+        """The prediction-error refinement after the verdict, as ``refinement`` says."""
+        if self.refinement == "never":
+            return self
+        if self.refinement == "always":
+            if notify is not None:
+                notify("refining the coefficients by prediction error ...")
+            return self.refine(runs)
+        open_ = _open_coefficient(self)
+        if open_ is None:
+            return self
+        term, rel = open_
+        auto = {"applied": False, "auto": True,
+                "balance_open": {"term": term, "relative_std": rel}}
+        if notify is not None:
+            notify(f"the energy balance leaves the coefficient of {term} open (±{100 * rel:.2g} %): "
+                   "refining the coefficients by prediction error ...")
+        trial = copy.copy(self)        # refine_model changes the model and its report in place
+        trial.diagnostics_ = copy.copy(self.diagnostics_)
+        try:
+            trial.refine(runs)
+        except (ValueError, RuntimeError) as exc:   # the balance's fit stands, with the reason
+            why = " ".join(str(exc).split())
+            # ValueError: data it cannot refine (runs not evenly sampled, terms not homogeneous
+            # in the velocities, free motion without a kinetic term); RuntimeError: the solver
+            auto["outcome"] = (f"skipped: {why}" if isinstance(exc, ValueError)
+                               else f"failed: {why}")
+            self.refinement_ = self._current(auto)
+            return self
+        info = trial.refinement_
+        if info["applied"] and trial.status_ == "ok":
+            info.update(auto, applied=True)
+            self.__dict__.clear()
+            self.__dict__.update(trial.__dict__)
+            return self
+        if not info["applied"]:
+            from .refine import not_applied_reason
+            auto["outcome"] = f"not applied ({not_applied_reason(info)})"
+        elif trial.coef_std_ is None:
+            auto["outcome"] = "the refined fit has no standard errors (singular linearisation)"
+        else:
+            left = _open_coefficient(trial)
+            auto["outcome"] = (f"the refined fit left the coefficient of {left[0]} open too "
+                               f"(±{100 * left[1]:.2g} %)" if left is not None else
+                               "the refined fit is undetermined: "
+                               + "; ".join(map(str, trial.status_reasons_)))
+            # what the refined fit was, apart from what describes the model (the balance's fit)
+            auto["refined_terms"] = trial.terms()
+            auto["refined_std"] = info.pop("hamiltonian_std", None)
+            info.pop("balance_status", None)
+        self.refinement_ = self._current({**info, **auto})
+        self.refine_result_ = trial.refine_result_
+        return self
+
+    def _current(self, info: dict) -> dict:
+        """``info`` marked as describing this model's present coefficients, those of the balance
+        (:func:`.refine.current_refinement`)."""
+        info.update(hamiltonian_terms=self.terms(), rayleigh_terms=self.terms("rayleigh"))
+        if "rms_before" in info:
+            info["rms_after"] = info["rms_before"]
+        return info
 
     @property
     def ok_(self) -> bool:
@@ -422,3 +507,14 @@ class LagrangianSINDy(FittedModel):
         """Read a model written by ``save`` or ``lsindy identify --json``."""
         from .model_file import load_model
         return load_model(cls, path)
+
+
+def _open_coefficient(model):
+    """(term, relative standard error) when the one finding against ``model`` is that a
+    coefficient is open (:func:`.status.open_coefficient`), else None."""
+    worst = open_coefficient(getattr(model, "status_", None), getattr(model, "status_reasons_", ()))
+    if worst is None:
+        return None
+    j = worst.numbers.get("term")
+    term = model.library.names[j] if j is not None else "a term"
+    return term, float(worst.numbers.get("relative_std", float("nan")))

@@ -35,7 +35,7 @@ from ..mechanics.parametric import DEFAULT_EPS, ParametricDynamics
 from .prediction import predict, prediction_std, rk4_predictor  # noqa: F401 (importable here)
 
 __all__ = ["RefineResult", "refine", "refine_model", "check_uniform", "current_refinement",
-           "refinement_text", "rk4_predictor", "predict", "prediction_std"]
+           "refinement_text", "not_applied_reason", "rk4_predictor", "predict", "prediction_std"]
 
 
 @dataclass
@@ -245,6 +245,7 @@ def refine(coords, lagrangian_terms, p0, trajectories, dissipation_terms=(), fix
         n_intervals += len(nodes) - 1
     nlp = {"x": ca.vertcat(*w), "f": cost / n_samples, "g": ca.vertcat(*g)}
     opts = {"ipopt.print_level": 5 if verbose else 0, "print_time": verbose,
+            "ipopt.sb": "no" if verbose else "yes",           # no IPOPT banner on stdout
             "ipopt.max_iter": max_iter, "ipopt.tol": 1e-12, "ipopt.acceptable_tol": 1e-10}
     solver = ca.nlpsol("refine", "ipopt", nlp, opts)
     start = time.perf_counter()
@@ -412,15 +413,31 @@ def current_refinement(model):
     return info if same else None
 
 
+def not_applied_reason(info: dict) -> str:
+    """Why a refinement (``model.refinement_``) was not applied, in a few words."""
+    if info["status"].startswith("refused"):
+        return info["status"]
+    if info["status"] != "Solve_Succeeded":
+        return f"IPOPT: {info['status']}"
+    return f"prediction error {info['rms_before']:.3g} -> {info['rms_refined']:.3g} did not drop"
+
+
 def refinement_text(info: dict) -> str:
     """One line on a model's refinement (``model.refinement_``) for the printout."""
+    why = ""
+    if info.get("auto"):
+        open_ = info.get("balance_open") or {}
+        why = (f"automatic: the energy balance left {open_.get('term', 'a coefficient')} open to "
+               f"±{100 * open_.get('relative_std', float('nan')):.2g} %")
+        if not info["applied"]:
+            return (f"prediction-error refinement ({why}): {info.get('outcome', 'not applied')}; "
+                    "coefficients from the energy balance")
+    if not info["applied"]:
+        return (f"refinement not applied ({not_applied_reason(info)}): coefficients from the "
+                "energy balance")
     before, after = info["rms_before"], info["rms_refined"]
     drop = 100 * (1 - after / before) if before > 0 else 0.0
-    if not info["applied"]:
-        why = (info["status"] if info["status"].startswith("refused")
-               else f"IPOPT: {info['status']}" if info["status"] != "Solve_Succeeded"
-               else f"prediction error {before:.3g} -> {after:.3g} did not drop")
-        return f"refinement not applied ({why}): coefficients from the energy balance"
     return (f"coefficients refined by prediction error over {info['runs']} run(s) "
-            f"({info['iterations']} IPOPT iterations, {info['seconds']:.1f} s): RMS position error "
-            f"{before:.3g} -> {after:.3g} ({drop:.1f} % lower)")
+            f"({why + '; ' if why else ''}{info['iterations']} IPOPT iterations, "
+            f"{info['seconds']:.1f} s): RMS position error {before:.3g} -> {after:.3g} "
+            f"({drop:.1f} % lower)")

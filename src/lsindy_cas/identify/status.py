@@ -62,8 +62,8 @@ from .k_choice import CHI_MISS, CHI_OK, fits
 from .standard_errors import propagated_std
 from .uncertainty import noise_model
 
-__all__ = ["assess", "refined_status", "OK", "UNDETERMINED", "SIM_TOL", "HORIZON", "CHI_BAD", "CHI_MIN_ERROR",
-           "COND_BAD", "REL_STD_BAD", "REL_STD_PROPAGATED"]
+__all__ = ["assess", "refined_status", "open_coefficient", "OK", "UNDETERMINED", "SIM_TOL",
+           "HORIZON", "CHI_BAD", "CHI_MIN_ERROR", "COND_BAD", "REL_STD_BAD", "REL_STD_PROPAGATED"]
 
 OK, UNDETERMINED = "ok", "undetermined"
 SIM_TOL = 0.05       # short-horizon drift, as a fraction of each state's range over the run
@@ -232,6 +232,17 @@ def refined_status(reasons, coef, coef_std, names, how: str) -> tuple[str, list]
         if rel > REL_STD_PROPAGATED:
             reasons.append(_open_coefficient(names, j, rel, how))
     return (UNDETERMINED if reasons else OK), reasons
+
+
+def open_coefficient(status, reasons):
+    """The finding of rule 7 (a coefficient's standard error too large) when it is all that
+    stands against a fit: ``status`` undetermined and every reason of that code; the one with
+    the largest relative error.  None otherwise (ok, or another finding too)."""
+    reasons = list(reasons or [])
+    if status != UNDETERMINED or not reasons or not all(
+            code_of(r) in (F.STD_PROPAGATED, F.STD_JACKKNIFE) for r in reasons):
+        return None
+    return max(reasons, key=lambda r: r.numbers.get("relative_std", 0.0))
 
 
 def _open_coefficient(names, j, rel, how: str) -> Finding:
